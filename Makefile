@@ -1,0 +1,51 @@
+# dampersim developer entry points. Needs only python3 (>= 3.11) and GNU make;
+# `make test` also installs Debian's chromium + chromium-driver when run as root.
+
+PY ?= python3
+VENV ?= .venv
+
+VENV_PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+TEST_CACHE := $(CURDIR)/.test-cache
+PYTEST_ARGS ?=
+
+# numba's cache=True writes here, so it works in a fresh clone / read-only tree.
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba-cache
+
+.PHONY: all venv run test bench clean
+
+all: test
+
+venv: $(STAMP)
+
+# Re-installs only when pyproject.toml is newer than the stamp.
+$(STAMP): pyproject.toml
+	test -x $(VENV_PY) || $(PY) -m venv $(VENV)
+	$(VENV_PY) -m pip install --upgrade pip
+	$(VENV_PY) -m pip install -e '.[test]'
+	touch $@
+
+run: venv
+	$(VENV_PY) app.py --host 127.0.0.1 --port 8050
+
+# Each test run starts with a cold result cache.
+test: export DAMPERSIM_CACHE_DIR := $(TEST_CACHE)
+test: venv
+	rm -rf $(TEST_CACHE)
+	mkdir -p $(TEST_CACHE)
+	bash scripts/ensure-chromium.sh
+	$(VENV_PY) -m pytest $(PYTEST_ARGS)
+
+bench: venv
+	@set -e; found=0; \
+	for f in bench/*.py; do \
+	  [ -e "$$f" ] || continue; found=1; \
+	  echo "== $$f"; \
+	  $(VENV_PY) "$$f"; \
+	done; \
+	[ $$found = 1 ] || echo "no bench/*.py scripts found"
+
+clean:
+	rm -rf $(VENV) .numba-cache .test-cache .pytest_cache build dist *.egg-info
+	find . -path ./.git -prune -o -type d -name __pycache__ -prune -exec rm -rf {} +
+	find cache -mindepth 1 -maxdepth 1 ! -name .gitkeep ! -name README -exec rm -rf {} +

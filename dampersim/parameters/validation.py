@@ -1,0 +1,147 @@
+"""Checks a :class:`DamperSystem` field by field and as a whole.
+
+Every failure raises :class:`dampersim.errors.ParameterError` naming the dotted field,
+the value given and what is accepted.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+from dampersim.errors import ParameterError
+from dampersim.parameters import model as m
+
+_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _describe(meta):
+    lo, hi, lo_open = meta.get("lo"), meta.get("hi"), meta.get("lo_open")
+    unit = meta.get("unit", "")
+    unit = "" if unit in ("-", "") else f" {unit}"
+    if lo is not None and hi is not None:
+        left = "(" if lo_open else "["
+        return f"a value in {left}{lo:g}, {hi:g}]{unit}"
+    if lo is not None:
+        return f"a value {'>' if lo_open else '>='} {lo:g}{unit}"
+    if hi is not None:
+        return f"a value <= {hi:g}{unit}"
+    return "a finite value"
+
+
+def _check_fields(obj, prefix=""):
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        path = f"{prefix}{f.name}"
+        if dataclasses.is_dataclass(v):
+            _check_fields(v, path + ".")
+            continue
+        if isinstance(v, tuple):
+            for i, e in enumerate(v):
+                _check_fields(e, f"{path}[{i}].")
+            continue
+        meta = f.metadata
+        kind = meta.get("kind")
+        if kind is None:
+            continue
+        if kind is bool:
+            if not isinstance(v, bool):
+                raise ParameterError(path, v, "true or false")
+            continue
+        if kind is int and (isinstance(v, bool) or not isinstance(v, int)):
+            raise ParameterError(path, v, "a whole number")
+        if kind is float and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            raise ParameterError(path, v, "a number")
+        if not math.isfinite(v):
+            raise ParameterError(path, v, _describe(meta))
+        lo, hi = meta.get("lo"), meta.get("hi")
+        if lo is not None and (v < lo or (meta.get("lo_open") and v <= lo)):
+            raise ParameterError(path, v, _describe(meta))
+        if hi is not None and v > hi:
+            raise ParameterError(path, v, _describe(meta))
+
+
+def _check_set(s: m.SpringSet, name: str):
+    for part in ("spring",):
+        if getattr(s, part) is None:
+            raise ParameterError(f"{name}.{part}", None, "an arc spring table")
+    if s.slot_arc <= 0:
+        raise ParameterError(
+            f"{name}.primary_stopper_half_width",
+            s.primary_stopper_half_width,
+            f"stoppers narrower than half the pitch ({math.degrees(s.pitch) / 2:.1f} deg)",
+        )
+    for part in ("spring", "nested"):
+        sp = getattr(s, part)
+        if sp is None:
+            continue
+        path = f"{name}.{part}"
+        if sp.arc >= s.pitch:
+            raise ParameterError(
+                f"{path}.arc",
+                sp.arc,
+                f"an arc shorter than the stopper pitch 2*pi/{s.count} = {s.pitch:.4f} rad",
+                "a spring longer than the pitch cannot fit between two stoppers",
+            )
+        block = sp.active_coils * sp.wire_thickness / sp.effective_radius
+        if block >= sp.arc:
+            raise ParameterError(
+                f"{path}.wire_thickness",
+                sp.wire_thickness,
+                f"coils x wire / r_eff below the free arc {sp.arc:.4f} rad (block arc is {block:.4f} rad)",
+            )
+        if sp.arc > s.slot_arc and s.slot_arc <= block:
+            raise ParameterError(
+                f"{path}.arc", sp.arc, f"a preload that keeps the spring longer than its block arc {block:.4f} rad"
+            )
+    if s.hardstop_positive >= s.slot_arc:
+        raise ParameterError(f"{name}.hardstop_positive", s.hardstop_positive, f"a windup below the slot arc {s.slot_arc:.4f} rad")
+    if -s.hardstop_negative >= s.slot_arc:
+        raise ParameterError(f"{name}.hardstop_negative", s.hardstop_negative, f"a windup above -{s.slot_arc:.4f} rad")
+
+
+def validate(system: m.DamperSystem, check_time_step: bool = True) -> m.DamperSystem:
+    """Raise ParameterError on the first invalid value; return ``system`` unchanged if valid.
+
+    With ``check_time_step`` the solver time step is compared with the stability bound of
+    the linearised model (:func:`dampersim.solver.linear.max_stable_time_step`).
+    """
+    if not isinstance(system, m.DamperSystem):
+        raise ParameterError("parameters", type(system).__name__, "a DamperSystem")
+    for part in ("inertias", "outer", "inner", "friction", "rig"):
+        if getattr(system, part) is None:
+            raise ParameterError(part, None, "a table of values")
+    for part in ("outer", "pair_outer", "pair_inner"):
+        if getattr(system.friction, part) is None:
+            raise ParameterError(f"friction.{part}", None, "a table with alpha (and optional preload)")
+    _check_fields(system)
+    _check_set(system.outer, "outer")
+    _check_set(system.inner, "inner")
+    total = system.friction.alpha_sec + system.friction.alpha_ter
+    if abs(total - 1.0) > 1e-9:
+        raise ParameterError("friction.alpha_ter", system.friction.alpha_ter, f"1 - alpha_sec = {1 - system.friction.alpha_sec:g}")
+    elements = system.rig.elements
+    if len(elements) < 1:
+        raise ParameterError("rig.elements", elements, "at least one element (the output motor)")
+    names = [e.name for e in elements]
+    for i, n in enumerate(names):
+        if not isinstance(n, str) or not _NAME_RE.match(n):
+            raise ParameterError(f"rig.elements[{i}].name", n, "an identifier (letters, digits, underscore)")
+    if len(set(names)) != len(names):
+        raise ParameterError("rig.elements", names, "unique element names")
+    if system.rig.output_transducer not in names[:-1]:
+        raise ParameterError("rig.output_transducer", system.rig.output_transducer, f"one of {names[:-1]} (not the motor)")
+    if system.motor.mode not in ("pi", "held"):
+        raise ParameterError("motor.mode", system.motor.mode, "'pi' or 'held'")
+    if check_time_step:
+        from dampersim.solver.linear import max_stable_time_step
+
+        dt_max = max_stable_time_step(system)
+        if system.solver.time_step > dt_max:
+            raise ParameterError(
+                "solver.time_step",
+                system.solver.time_step,
+                f"a step at or below the stability bound {dt_max:.3g} s of this parameter set",
+            )
+    return system

@@ -1,0 +1,661 @@
+"""All hot code of dampersim: numba kernels on flat float64/int64 arrays.
+
+Equations ([thesis] chapter 5, as corrected in model-spec §2-6):
+
+- bodies J_pri, J_sec, J_ter ([thesis] Eq. 4-6) and the rig chain (Eq. 34-35);
+- arc springs as N massless segments between N-1 point masses (Eq. 14-15), free ends
+  pushed but never pulled by the stoppers (Eq. 16-18);
+- radial force = centrifugal + redirection + preload (Eq. 19-24) and Makkar friction
+  (Eq. 27-28) against the housing or, for the inner spring of a nested pair, against
+  the outer spring's mass (Eq. 25-26);
+- hardstops as a stiff, damped, one-sided contact (we differ from the thesis's inertia
+  merge, Eq. 30-33, see model-spec §6);
+- coil stacking as a momentum-conserving contact (position projection + inelastic
+  impulse) instead of the thesis's position clamp (Eq. 29), which breaks momentum.
+
+Integrator: symplectic (semi-implicit) Euler for the smooth forces, and a linearly
+implicit (Rosenbrock-type) update of each friction contact in turn, so the stiff
+friction slope at small slip speed (about 38 per m/s) needs no tiny step.
+Array layouts are defined in :mod:`dampersim.solver.layout`.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+from dampersim.solver.layout import (
+    F_BLOCK,
+    F_COUNT,
+    F_KSEG,
+    F_MASS,
+    F_NW,
+    F_PHIPS,
+    F_PHISEG,
+    F_PHISS,
+    F_PITCH,
+    F_PRELOAD,
+    F_REFF,
+    I_A,
+    I_N,
+    I_NODE,
+    I_OFF,
+    P_DT,
+    P_G1,
+    P_G2,
+    P_G3,
+    P_G4,
+    P_G5,
+    P_G6,
+    P_HELD,
+    P_HS_D,
+    P_HS_K,
+    P_HS_ON,
+    P_HSN_I,
+    P_HSN_O,
+    P_HSP_I,
+    P_HSP_O,
+    P_KI,
+    P_KP,
+    P_NRIG,
+    P_OMEGA0,
+    P_RIG0,
+    P_TRANS,
+    P_VMAX,
+)
+
+# record columns (one row per stored sample)
+R_T = 0
+R_TIN = 1
+R_TOUT = 2
+R_W_PRI = 3  # absolute speeds [rad/s]
+R_W_SEC = 4
+R_W_TER = 5
+R_W_MOTOR = 6
+R_WIND_O = 7  # windup of the outer set [rad]
+R_WIND_I = 8  # windup of the inner set [rad]
+R_WIND_RIG = 9  # J_pri angle - output transducer angle [rad]
+R_HS_O = 10  # hardstop torque of the outer set [N m] (+ positive stop, - negative stop)
+R_HS_I = 11
+R_MOTOR_T = 12  # output motor torque [N m]
+R_E_IN = 13  # work of the input torque [J]
+R_E_MOTOR = 14  # work of the output motor [J]
+R_E_KIN = 15  # kinetic energy [J]
+R_E_SPRING = 16  # elastic energy (springs, shafts, hardstops) [J]
+R_E_FRIC = 17  # friction dissipation [J]
+R_E_DAMP = 18  # viscous dissipation (shafts, inertia damping, hardstop damping) [J]
+R_E_STACK = 19  # energy removed by coil-stacking contacts [J]
+R_SET_O = 20  # torque the outer set's springs pass to J_sec [N m]
+R_SET_I = 21  # torque the inner set's springs pass to J_ter [N m]
+NREC = 22
+
+
+@njit(cache=True, inline="always")
+def fast_tanh(x):
+    """tanh(x) through expm1 (about 3x faster than libm's tanh here, same accuracy to
+    a few ulp); exactly +-1 where tanh rounds to +-1 in float64."""
+    ax = abs(x)
+    if ax > 19.1:
+        return math.copysign(1.0, x)
+    e = math.expm1(-2.0 * ax)
+    return math.copysign(-e / (2.0 + e), x)
+
+
+@njit(cache=True, inline="always")
+def makkar(v, g1, g2, g3, g4, g5, g6):
+    """Friction coefficient and its slope d(mu)/dv at slip speed v [m/s] ([thesis] Eq. 27)."""
+    a = fast_tanh(g2 * v)
+    b = fast_tanh(g3 * v)
+    if g5 == g2:
+        c = a
+    else:
+        c = fast_tanh(g5 * v)
+    mu = g1 * (a - b) + g4 * c + g6 * v
+    dmu = g1 * (g2 * (1.0 - a * a) - g3 * (1.0 - b * b)) + g4 * g5 * (1.0 - c * c) + g6
+    return mu, dmu
+
+
+@njit(cache=True)
+def spring_nodes(q, P, SF, SI, X):
+    """Slot coordinates of every node of every spring into X (Eq. 16-18)."""
+    for s in range(SF.shape[0]):
+        a = SI[s, I_A]
+        n = SI[s, I_N]
+        off = SI[s, I_OFF]
+        base = SI[s, I_NODE]
+        w = q[a] - q[a + 1]
+        phiseg = SF[s, F_PHISEG]
+        pitch = SF[s, F_PITCH]
+        for i in range(1, n):
+            X[base + i] = q[a] - q[off + i - 1]
+        x0 = SF[s, F_PHIPS]
+        xb = w + SF[s, F_PHISS]
+        if xb > x0:
+            x0 = xb
+        xf = X[base + 1] - phiseg
+        if xf > x0:
+            x0 = xf
+        X[base] = x0
+        xn = pitch - SF[s, F_PHIPS]
+        xb = w + pitch - SF[s, F_PHISS]
+        if xb < xn:
+            xn = xb
+        xf = X[base + n - 1] + phiseg
+        if xf < xn:
+            xn = xf
+        X[base + n] = xn
+
+
+@njit(cache=True)
+def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec):
+    """Torques on every DOF at state (q, v): conservative FC, dissipative FD, external FE
+    (input and motor), and the normal force FN [N] on every spring mass (count springs).
+
+    Fills ``rec`` (if its length is > 0) with the measured quantities of this state.
+    Returns the elastic energy [J].
+    """
+    ndof = q.shape[0]
+    om0 = P[P_OMEGA0]
+    for i in range(ndof):
+        FC[i] = 0.0
+        FD[i] = 0.0
+        FE[i] = 0.0
+        FN[i] = 0.0
+    energy = 0.0
+    sb0 = 0.0  # spring torque the outer set passes to J_sec
+    sb1 = 0.0  # spring torque the inner set passes to J_ter
+    spring_nodes(q, P, SF, SI, X)
+    for s in range(SF.shape[0]):
+        a = SI[s, I_A]
+        b = a + 1
+        n = SI[s, I_N]
+        off = SI[s, I_OFF]
+        base = SI[s, I_NODE]
+        kseg = SF[s, F_KSEG]
+        phiseg = SF[s, F_PHISEG]
+        count = SF[s, F_COUNT]
+        reff = SF[s, F_REFF]
+        nw = SF[s, F_NW]
+        m = SF[s, F_MASS]
+        pitch = SF[s, F_PITCH]
+        w = q[a] - q[b]
+        tprev = 0.0
+        fdprev = 0.0
+        for j in range(n):
+            seg = X[base + j + 1] - X[base + j]
+            c = phiseg - seg
+            t = kseg * c
+            energy += 0.5 * count * kseg * c * c
+            # redirection force of this segment (Eq. 21); only compression pushes outwards
+            fd = 0.0
+            if t > 0.0:
+                fd = t / reff * 2.0 * nw * math.sin(seg / (2.0 * nw))
+            if j >= 1:
+                # mass at node j (DOF off + j - 1): theta torque T_j - T_{j-1} (Eq. 14)
+                d = off + j - 1
+                FC[d] += count * (t - tprev)
+                # redirection share (Eq. 22-24): end segments go fully to their mass
+                if j == 1:
+                    fr = fdprev + 0.5 * fd
+                else:
+                    fr = 0.5 * fdprev + 0.5 * fd
+                if j == n - 1:
+                    fr = fr + 0.5 * fd
+                om = om0 + v[d]
+                FN[d] = count * (m * reff * om * om + fr + SF[s, F_PRELOAD])
+            if j == 0:
+                # node 0 is pushed (theta direction) by segment 0 onto the stopper it rests on
+                fa = SF[s, F_PHIPS]
+                fb = w + SF[s, F_PHISS]
+                tb = 0.0
+                if fb > fa:
+                    tb = count * t
+                elif fa > fb:
+                    FC[a] += count * t
+                else:
+                    FC[a] += 0.5 * count * t
+                    tb = 0.5 * count * t
+                FC[b] += tb
+                if a == 0:
+                    sb0 += tb
+                else:
+                    sb1 += tb
+            if j == n - 1:
+                fa = pitch - SF[s, F_PHIPS]
+                fb = w + pitch - SF[s, F_PHISS]
+                tb = 0.0
+                if fb < fa:
+                    tb = count * t
+                elif fa < fb:
+                    FC[a] -= count * t
+                else:
+                    FC[a] -= 0.5 * count * t
+                    tb = 0.5 * count * t
+                FC[b] -= tb
+                if a == 0:
+                    sb0 -= tb
+                else:
+                    sb1 -= tb
+            tprev = t
+            fdprev = fd
+    # hardstops: stiff, damped, one-sided contact on the windup of each set
+    hs0 = 0.0
+    hs1 = 0.0
+    if P[P_HS_ON] > 0.0:
+        k = P[P_HS_K]
+        dmp = P[P_HS_D]
+        for st in range(2):
+            a = st
+            b = st + 1
+            w = q[a] - q[b]
+            dw = v[a] - v[b]
+            if st == 0:
+                lim_p = P[P_HSP_O]
+                lim_n = P[P_HSN_O]
+            else:
+                lim_p = P[P_HSP_I]
+                lim_n = P[P_HSN_I]
+            pen = 0.0
+            if w > lim_p:
+                pen = w - lim_p
+            elif w < lim_n:
+                pen = w - lim_n
+            if pen != 0.0:
+                tk = k * pen
+                tt = tk + dmp * dw
+                if tt * pen < 0.0:  # never pulls
+                    tt = 0.0
+                energy += 0.5 * k * pen * pen
+                FC[a] -= tk
+                FC[b] += tk
+                FD[a] -= tt - tk
+                FD[b] += tt - tk
+                if st == 0:
+                    hs0 = tt
+                else:
+                    hs1 = tt
+    # rig chain (Eq. 34-35)
+    nrig = int(P[P_NRIG])
+    rig0 = int(P[P_RIG0])
+    trans = int(P[P_TRANS])
+    tout = 0.0
+    for e in range(nrig):
+        d = rig0 + e
+        prev = 2 if e == 0 else d - 1
+        dq = q[prev] - q[d]
+        ks = RIG[e, 0] * dq
+        ds = RIG[e, 1] * (v[prev] - v[d])
+        FC[prev] -= ks
+        FC[d] += ks
+        FD[prev] -= ds
+        FD[d] += ds
+        energy += 0.5 * RIG[e, 0] * dq * dq
+        FD[d] -= RIG[e, 2] * (om0 + v[d])
+        if d == trans:
+            tout = ks + ds
+    motor = rig0 + nrig - 1
+    FE[0] = tin
+    tm = 0.0
+    if P[P_HELD] > 0.0:
+        tm = -(FC[motor] + FD[motor])
+    else:
+        tm = -P[P_KP] * v[motor] + P[P_KI] * z
+    FE[motor] = tm
+    if rec.shape[0] > 0:
+        rec[R_TIN] = tin
+        rec[R_TOUT] = tout
+        rec[R_W_PRI] = om0 + v[0]
+        rec[R_W_SEC] = om0 + v[1]
+        rec[R_W_TER] = om0 + v[2]
+        rec[R_W_MOTOR] = om0 + v[motor]
+        rec[R_WIND_O] = q[0] - q[1]
+        rec[R_WIND_I] = q[1] - q[2]
+        rec[R_WIND_RIG] = q[0] - q[trans]
+        rec[R_HS_O] = hs0
+        rec[R_HS_I] = hs1
+        rec[R_MOTOR_T] = tm
+        rec[R_SET_O] = sb0
+        rec[R_SET_I] = sb1
+    return energy
+
+
+@njit(cache=True)
+def friction_torques(v, P, J, CI, CF, FN, TF):
+    """Explicit friction torque of each contact at speeds v (for the RHS and reference):
+    TF[c] > 0 brakes the mass CI[c,0] and drives the housing CI[c,1] (Eq. 28)."""
+    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
+    for c in range(CI.shape[0]):
+        a = CI[c, 0]
+        b = CI[c, 1]
+        r = CF[c, 1]
+        mu, dmu = makkar((v[a] - v[b]) * r, g1, g2, g3, g4, g5, g6)
+        TF[c] = CF[c, 0] * FN[a] * r * mu
+
+
+@njit(cache=True, inline="always")
+def _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6):
+    """Linearised friction torque of contact c: T = p + q * s with s the end-of-step slip
+    [rad/s]. The law is taken at the start-of-step slip s0 and applied at the step's
+    midpoint slip (s0 + s)/2 (second order, A-stable); a negative slope (Stribeck
+    branch) is applied explicitly at the current slip. Returns (p, q, current slip)."""
+    a = CI[c, 0]
+    b = CI[c, 1]
+    r = CF[c, 1]
+    cn = CF[c, 0] * FN[a] * r
+    s0 = v0[a] - v0[b]
+    ss = v[a] - v[b]
+    mu, dmu = makkar(s0 * r, g1, g2, g3, g4, g5, g6)
+    qc = 0.5 * cn * dmu * r
+    qi = qc if qc > 0.0 else 0.0
+    p = cn * mu - qi * s0 + (qc - qi) * (ss - s0)
+    return p, qi, ss
+
+
+@njit(cache=True)
+def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt):
+    """Friction impulses for one step, applied to v in place; returns dissipation [J].
+
+    Each spring mass (and each nested pair's two masses together) is solved implicitly
+    in its slip speeds with the housing bodies' speeds taken as known, then the
+    reactions are applied to the housings (Eq. 25-28). The dissipation is the exact
+    kinetic-energy change of these impulses.
+    """
+    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
+    diss = 0.0
+    for k in range(SG.shape[0]):
+        m = SG[k, 0]
+        c = SG[k, 1]
+        b = CI[c, 1]
+        p, q, ss = _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
+        jd = J[m] / dt
+        vm = (jd * v[m] - p + q * v[b]) / (jd + q)
+        t = p + q * (vm - v[b])
+        v[m] = vm
+        v[b] += dt * t / J[b]
+        diss += dt * t * 0.5 * (ss + v[m] - v[b])
+    for k in range(PG.shape[0]):
+        mo = PG[k, 0]
+        mi = PG[k, 1]
+        c1 = PG[k, 2]
+        c2 = PG[k, 3]
+        c3 = PG[k, 4]
+        p1 = q1 = s1 = p2 = q2 = s2 = p3 = q3 = s3 = 0.0
+        b1 = 1
+        b2 = 2
+        if c1 >= 0:
+            p1, q1, s1 = _contact_law(c1, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
+            b1 = CI[c1, 1]
+        if c2 >= 0:
+            p2, q2, s2 = _contact_law(c2, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
+            b2 = CI[c2, 1]
+        if c3 >= 0:
+            p3, q3, s3 = _contact_law(c3, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
+        jo = J[mo] / dt
+        a11 = jo + q1 + q2 + q3
+        r1 = jo * v[mo] - p1 + q1 * v[b1] - p2 + q2 * v[b2] + p3
+        if mi >= 0:
+            ji = J[mi] / dt
+            a22 = ji + q3
+            r2 = ji * v[mi] - p3
+            det = a11 * a22 - q3 * q3
+            vo = (r1 * a22 + q3 * r2) / det
+            vi = (a11 * r2 + q3 * r1) / det
+            v[mi] = vi
+        else:
+            vo = r1 / a11
+            vi = 0.0
+        v[mo] = vo
+        t1 = p1 + q1 * (vo - v[b1])
+        t2 = p2 + q2 * (vo - v[b2])
+        t3 = p3 + q3 * (vi - vo)
+        if c1 >= 0:
+            v[b1] += dt * t1 / J[b1]
+            diss += dt * t1 * 0.5 * (s1 + vo - v[b1])
+        if c2 >= 0:
+            v[b2] += dt * t2 / J[b2]
+            diss += dt * t2 * 0.5 * (s2 + vo - v[b2])
+        if c3 >= 0:
+            diss += dt * t3 * 0.5 * (s3 + vi - vo)
+    return diss
+
+
+@njit(cache=True)
+def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
+    """Time derivative of (q, v, z) with friction evaluated explicitly.
+
+    Used by the reference comparison and by the scipy (LSODA) benchmark; the production
+    integrator :func:`integrate` uses the same forces with implicit friction.
+    """
+    ndof = q.shape[0]
+    X = np.zeros(n_nodes)
+    FC = np.zeros(ndof)
+    FD = np.zeros(ndof)
+    FE = np.zeros(ndof)
+    FN = np.zeros(ndof)
+    TF = np.zeros(CI.shape[0])
+    rec = np.zeros(0)
+    forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec)
+    friction_torques(v, P, J, CI, CF, FN, TF)
+    acc = np.zeros(ndof)
+    for i in range(ndof):
+        acc[i] = FC[i] + FD[i] + FE[i]
+    for c in range(CI.shape[0]):
+        acc[CI[c, 0]] -= TF[c]
+        acc[CI[c, 1]] += TF[c]
+    for i in range(ndof):
+        acc[i] /= J[i]
+    motor = int(P[P_RIG0] + P[P_NRIG]) - 1
+    if P[P_HELD] > 0.0:
+        acc[motor] = 0.0
+    return v.copy(), acc, -v[motor]
+
+
+@njit(cache=True)
+def _stack_pair(q, v, J, da, db, delta, stats):
+    """Separate two masses (x_b - x_a must grow by delta; x = q_A - q) keeping their
+    momentum, and remove their approach speed with an inelastic impulse."""
+    ja = J[da]
+    jb = J[db]
+    tot = ja + jb
+    # x_a down by delta*jb/tot -> q_a up; x_b up by delta*ja/tot -> q_b down
+    q[da] += delta * jb / tot
+    q[db] -= delta * ja / tot
+    # approach in x: d/dt(x_b - x_a) = v_a - v_b < 0  <=>  v_b > v_a
+    if v[db] > v[da]:
+        vm = (ja * v[da] + jb * v[db]) / tot
+        ke0 = 0.5 * ja * v[da] ** 2 + 0.5 * jb * v[db] ** 2
+        v[da] = vm
+        v[db] = vm
+        stats[0] += ke0 - 0.5 * tot * vm * vm
+    stats[1] += 1.0
+
+
+@njit(cache=True)
+def stacking_needed(q, P, SF, SI, X):
+    """True if any segment is shorter than its block arc."""
+    spring_nodes(q, P, SF, SI, X)
+    for s in range(SF.shape[0]):
+        n = SI[s, I_N]
+        base = SI[s, I_NODE]
+        block = SF[s, F_BLOCK]
+        for j in range(n):
+            if X[base + j + 1] - X[base + j] < block:
+                return True
+    return False
+
+
+@njit(cache=True)
+def elastic_energy(q, P, SF, SI, RIG, X):
+    """Elastic energy [J] of springs (all count copies), hardstop contacts and rig shafts."""
+    spring_nodes(q, P, SF, SI, X)
+    e = 0.0
+    for s in range(SF.shape[0]):
+        n = SI[s, I_N]
+        base = SI[s, I_NODE]
+        for j in range(n):
+            c = SF[s, F_PHISEG] - (X[base + j + 1] - X[base + j])
+            e += 0.5 * SF[s, F_COUNT] * SF[s, F_KSEG] * c * c
+    if P[P_HS_ON] > 0.0:
+        for st in range(2):
+            w = q[st] - q[st + 1]
+            lim_p = P[P_HSP_O] if st == 0 else P[P_HSP_I]
+            lim_n = P[P_HSN_O] if st == 0 else P[P_HSN_I]
+            pen = 0.0
+            if w > lim_p:
+                pen = w - lim_p
+            elif w < lim_n:
+                pen = w - lim_n
+            e += 0.5 * P[P_HS_K] * pen * pen
+    rig0 = int(P[P_RIG0])
+    for e_ in range(int(P[P_NRIG])):
+        d = rig0 + e_
+        prev = 2 if e_ == 0 else d - 1
+        dq = q[prev] - q[d]
+        e += 0.5 * RIG[e_, 0] * dq * dq
+    return e
+
+
+@njit(cache=True)
+def stacking(q, v, P, SF, SI, J, X, stats):
+    """Coil-stacking contact ([thesis] Eq. 29, made momentum-conserving): no segment may
+    be shorter than its block arc. One forward sweep per step.
+
+    stats[0] accumulates kinetic energy removed by impulses [J] (relative-speed basis,
+    see :func:`integrate`), stats[1] counts contacts.
+    """
+    spring_nodes(q, P, SF, SI, X)
+    for s in range(SF.shape[0]):
+        a = SI[s, I_A]
+        b = a + 1
+        n = SI[s, I_N]
+        off = SI[s, I_OFF]
+        base = SI[s, I_NODE]
+        block = SF[s, F_BLOCK]
+        # end segment 0: node 0 rests on a stopper (or is free, then it is relaxed)
+        seg = X[base + 1] - X[base]
+        if seg < block:
+            fa = SF[s, F_PHIPS]
+            fb = q[a] - q[b] + SF[s, F_PHISS]
+            body = b if fb >= fa else a
+            _stack_pair(q, v, J, body, off, block - seg, stats)
+        for j in range(1, n - 1):
+            xa = q[a] - q[off + j - 1]
+            xb = q[a] - q[off + j]
+            seg = xb - xa
+            if seg < block:
+                _stack_pair(q, v, J, off + j - 1, off + j, block - seg, stats)
+        spring_nodes(q, P, SF, SI, X)
+        seg = X[base + n] - X[base + n - 1]
+        if seg < block:
+            fa = SF[s, F_PITCH] - SF[s, F_PHIPS]
+            fb = q[a] - q[b] + SF[s, F_PITCH] - SF[s, F_PHISS]
+            body = b if fb <= fa else a
+            _stack_pair(q, v, J, off + n - 2, body, block - seg, stats)
+
+
+@njit(cache=True)
+def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_every, seg_every, rec, seg_rec):
+    """March ``len(torque)`` steps of size P[P_DT] from state (q, v) in place.
+
+    torque[n] is the input torque [N m] at t = n dt. Every ``rec_every`` steps a row of
+    ``rec`` (columns R_*) is written, every ``seg_every`` steps a row of ``seg_rec`` (slot
+    coordinates of all spring nodes). Returns (status, step): status 0 = finished,
+    1 = NaN, 2 = runaway speed, 3 = windup far beyond a hardstop.
+    """
+    ndof = q.shape[0]
+    nsteps = torque.shape[0]
+    dt = P[P_DT]
+    om0 = P[P_OMEGA0]
+    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
+    held = P[P_HELD] > 0.0
+    motor = int(P[P_RIG0] + P[P_NRIG]) - 1
+    vmax = P[P_VMAX]
+    hs_on = P[P_HS_ON] > 0.0
+    wlim = 0.0
+    if hs_on:
+        wlim = 0.35 + max(max(P[P_HSP_O], -P[P_HSN_O]), max(P[P_HSP_I], -P[P_HSN_I]))
+    X = np.zeros(n_nodes)
+    FC = np.zeros(ndof)
+    FD = np.zeros(ndof)
+    FE = np.zeros(ndof)
+    FN = np.zeros(ndof)
+    v0 = np.zeros(ndof)
+    invj = 1.0 / J
+    row = np.zeros(rec.shape[1])
+    empty = np.zeros(0)
+    stats = np.zeros(2)
+    z = 0.0
+    e_in = 0.0
+    e_motor = 0.0
+    e_fric = 0.0
+    e_damp = 0.0
+    e_stack = 0.0
+    irec = 0
+    iseg = 0
+    for step in range(nsteps):
+        tin = torque[step]
+        record = (step % rec_every == 0) and irec < rec.shape[0]
+        if record:
+            energy = forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, row)
+        else:
+            energy = forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, empty)
+        if record:
+            ke = 0.0
+            for i in range(ndof):
+                om = om0 + v[i]
+                ke += 0.5 * J[i] * om * om
+            row[R_T] = step * dt
+            row[R_E_IN] = e_in
+            row[R_E_MOTOR] = e_motor
+            row[R_E_KIN] = ke
+            row[R_E_SPRING] = energy
+            row[R_E_FRIC] = e_fric
+            row[R_E_DAMP] = e_damp
+            row[R_E_STACK] = e_stack
+            for k in range(rec.shape[1]):
+                rec[irec, k] = row[k]
+            irec += 1
+        if step % seg_every == 0 and iseg < seg_rec.shape[0]:
+            spring_nodes(q, P, SF, SI, X)
+            for k in range(n_nodes):
+                seg_rec[iseg, k] = X[k]
+            iseg += 1
+        # 1) smooth forces: explicit velocity update; energy of each force type at the
+        #    mid-step speed, which makes the kinetic-energy bookkeeping exact
+        for i in range(ndof):
+            v0[i] = v[i]
+            v[i] = v[i] + dt * (FC[i] + FD[i] + FE[i]) * invj[i]
+        if held:
+            v[motor] = 0.0
+        for i in range(ndof):
+            om_mid = om0 + 0.5 * (v0[i] + v[i])
+            e_damp -= dt * FD[i] * om_mid
+        e_in += dt * tin * (om0 + 0.5 * (v0[0] + v[0]))
+        e_motor += dt * FE[motor] * (om0 + 0.5 * (v0[motor] + v[motor]))
+        # 2) friction: each group (one mass, or the two masses of a nested pair) is
+        #    solved linearly implicitly in the slip speeds, about the start-of-step
+        #    slips, with the housing bodies' speeds taken as known (Eq. 27-28)
+        e_fric += friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt)
+        # 3) PI state and positions
+        z -= dt * v[motor]
+        for i in range(ndof):
+            q[i] += dt * v[i]
+        # 4) coil stacking (rarely active: block arcs lie beyond the hardstop travel)
+        if stacking_needed(q, P, SF, SI, X):
+            # energy the contact removes = impulse losses (the same on absolute and
+            # relative speeds, since momentum is conserved) + elastic energy taken out by
+            # the position projection
+            u0 = elastic_energy(q, P, SF, SI, RIG, X)
+            stats[0] = 0.0
+            stacking(q, v, P, SF, SI, J, X, stats)
+            e_stack += stats[0] + u0 - elastic_energy(q, P, SF, SI, RIG, X)
+        if step % 256 == 0:
+            for i in range(ndof):
+                if not (v[i] == v[i]) or not (q[i] == q[i]):
+                    return 1, step
+                if abs(v[i]) > vmax:
+                    return 2, step
+            if hs_on:
+                if abs(q[0] - q[1]) > wlim or abs(q[1] - q[2]) > wlim:
+                    return 3, step
+    return 0, nsteps

@@ -1,0 +1,256 @@
+"""Flatten a :class:`DamperSystem` once into the float64/int64 arrays the kernel reads.
+
+Degrees of freedom (all angles in a frame turning at the nominal speed Omega0 [rad/s],
+all speeds relative to Omega0; model-spec §1):
+
+====================  =========================================================
+index                 body
+====================  =========================================================
+0, 1, 2               J_pri, J_sec, J_ter
+3 ...                 segment masses of each integrated spring, in spring order
+                      (outer spring; nested pair outer; nested pair inner)
+then                  rig elements in power-flow order; the last is the motor
+====================  =========================================================
+
+Each integrated spring stands for ``count`` identical springs: its masses carry
+``count`` times one spring's inertia and all its forces are ``count`` times one
+spring's, so the bodies receive the whole set's torque and momentum is conserved.
+
+Spring coordinates ([thesis] Eq. 16-18, model-spec §3): for a set between body A
+(before) and body B (after), a node's slot coordinate is ``x = q_A - q_node`` [rad],
+measured against the rotation from the centre of A's stopper. B's stopper sits at
+``x = w`` with windup ``w = q_A - q_B``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dampersim.parameters.model import DamperSystem
+
+PRI, SEC, TER = 0, 1, 2
+
+# --- scalar parameter vector P -------------------------------------------------------
+P_OMEGA0 = 0
+P_DT = 1
+P_G1, P_G2, P_G3, P_G4, P_G5, P_G6 = 2, 3, 4, 5, 6, 7
+P_HS_ON = 8
+P_HS_K = 9
+P_HS_D = 10
+P_HSP_O = 11  # outer positive hardstop windup [rad]
+P_HSN_O = 12  # outer negative hardstop windup [rad] (negative number)
+P_HSP_I = 13
+P_HSN_I = 14
+P_KP = 15
+P_KI = 16
+P_HELD = 17  # 1.0: motor speed prescribed
+P_NRIG = 18
+P_RIG0 = 19  # DOF index of the first rig element
+P_TRANS = 20  # DOF index of the output transducer element
+P_VMAX = 21  # divergence threshold on relative speed [rad/s]
+P_SIZE = 22
+
+# --- spring table SF (float) and SI (int), one row per integrated spring --------------
+F_KSEG = 0  # segment stiffness k_seg = N k_spring [N m/rad]
+F_PHISEG = 1  # relaxed segment arc [rad]
+F_BLOCK = 2  # block (coil-bound) arc of one segment [rad]
+F_MASS = 3  # mass of one node [kg] (one spring)
+F_REFF = 4  # effective radius [m]
+F_NW = 5  # coils per segment [-]
+F_PRELOAD = 6  # radial preload per mass [N]
+F_COUNT = 7  # number of identical springs represented
+F_PITCH = 8  # stopper pitch 2 pi / nS [rad]
+F_PHIPS = 9  # stopper half width of body A [rad]
+F_PHISS = 10  # stopper half width of body B [rad]
+NF = 11
+
+I_A = 0  # body before the set
+I_N = 1  # segments
+I_OFF = 2  # DOF index of the first mass (node 1)
+I_NODE = 3  # offset of node 0 in the node scratch / record arrays
+NI = 4
+
+
+@dataclass(frozen=True)
+class SpringInfo:
+    """Where one integrated spring lives in the arrays (for results and plots)."""
+
+    name: str
+    set_name: str
+    segments: int
+    first_dof: int
+    first_node: int
+
+
+@dataclass(frozen=True)
+class Layout:
+    """All arrays the kernel needs, built once per (parameters, speed)."""
+
+    P: np.ndarray
+    SF: np.ndarray
+    SI: np.ndarray
+    J: np.ndarray
+    contacts_idx: np.ndarray  # (nc, 2) int: [mass dof, housing dof]
+    contacts_f: np.ndarray  # (nc, 2) float: [alpha x housing weight, friction radius]
+    singles: np.ndarray  # (n, 2) int: [mass, contact]
+    pairs: np.ndarray  # (n, 5) int: [outer mass, inner mass|-1, contact sec|-1, ter|-1, inner|-1]
+    rig: np.ndarray  # (nrig, 3) float: [shaft K, shaft B_k, inertia damping B_j]
+    dof_names: tuple
+    springs: tuple
+    n_nodes: int
+    rig_names: tuple
+
+    @property
+    def ndof(self) -> int:
+        return len(self.J)
+
+
+def build_layout(system: DamperSystem, omega0: float) -> Layout:
+    """Flatten ``system`` at nominal speed ``omega0`` [rad/s] into kernel arrays."""
+    s = system
+    fr = s.friction
+    names = ["primary", "secondary", "tertiary"]
+    J = [s.inertias.primary, s.inertias.secondary, s.inertias.tertiary]
+    SF, SI, springs, contacts_idx, contacts_f = [], [], [], [], []
+    n_nodes = 0
+
+    def add_spring(name, set_name, a_body, spring_set, spring, n_seg):
+        nonlocal n_nodes
+        count = spring_set.count
+        first = len(J)
+        row = np.zeros(NF)
+        row[F_KSEG] = n_seg * spring.stiffness
+        row[F_PHISEG] = spring.arc / n_seg
+        row[F_BLOCK] = spring.active_coils * spring.wire_thickness / spring.effective_radius / n_seg
+        row[F_MASS] = spring.mass / (n_seg - 1)
+        row[F_REFF] = spring.effective_radius
+        row[F_NW] = spring.active_coils / n_seg
+        row[F_COUNT] = count
+        row[F_PITCH] = spring_set.pitch
+        row[F_PHIPS] = spring_set.primary_stopper_half_width
+        row[F_PHISS] = spring_set.secondary_stopper_half_width
+        irow = np.array([a_body, n_seg, first, n_nodes], dtype=np.int64)
+        for i in range(1, n_seg):
+            names.append(f"{name}[{i}]")
+            J.append(count * row[F_MASS] * spring.effective_radius**2)
+        SF.append(row)
+        SI.append(irow)
+        springs.append(SpringInfo(name, set_name, n_seg, first, n_nodes))
+        n_nodes += n_seg + 1
+        return len(SF) - 1, first
+
+    no, ni = s.solver.outer_segments, s.solver.inner_segments
+    i_o, first_o = add_spring("outer", "outer", PRI, s.outer, s.outer.spring, no)
+    SF[i_o][F_PRELOAD] = fr.outer.preload
+    i_po, first_po = add_spring("pair_outer", "inner", SEC, s.inner, s.inner.spring, ni)
+    SF[i_po][F_PRELOAD] = fr.pair_outer.preload
+    if s.inner.nested is not None:
+        i_pi, first_pi = add_spring("pair_inner", "inner", SEC, s.inner, s.inner.nested, ni)
+        SF[i_pi][F_PRELOAD] = fr.pair_inner.preload
+
+    singles = []  # [mass, contact]: a spring mass rubbing on one body
+    pairs = []  # [outer mass, inner mass or -1, contact on J_sec, on J_ter, inner on outer]
+
+    def add_contact(mass, housing, weight, radius):
+        if weight <= 0:
+            return -1
+        contacts_idx.append((mass, housing))
+        contacts_f.append((weight, radius))
+        return len(contacts_idx) - 1
+
+    if fr.enabled:
+        # [thesis] §5.3.1/§5.4: outer springs rub on J_sec's race only.
+        for i in range(no - 1):
+            c = add_contact(first_o + i, SEC, fr.outer.alpha, s.outer.spring.friction_radius)
+            if c >= 0:
+                singles.append((first_o + i, c))
+        # Nested pair outer spring rubs on the housing made of J_sec and J_ter parts; we
+        # compute each part's friction with its own slip speed and weight it by alpha_sec /
+        # alpha_ter (the thesis weights one friction torque computed against J_sec).
+        # The inner spring of the pair rubs on the outer spring's mass of the same index
+        # (Eq. 25-26); the two masses are solved together.
+        r_po = s.inner.spring.friction_radius
+        for i in range(ni - 1):
+            c_sec = add_contact(first_po + i, SEC, fr.pair_outer.alpha * fr.alpha_sec, r_po)
+            c_ter = add_contact(first_po + i, TER, fr.pair_outer.alpha * fr.alpha_ter, r_po)
+            c_in, m2 = -1, -1
+            if s.inner.nested is not None:
+                m2 = first_pi + i
+                c_in = add_contact(m2, first_po + i, fr.pair_inner.alpha, s.inner.nested.friction_radius)
+            if max(c_sec, c_ter, c_in) >= 0:
+                pairs.append((first_po + i, m2, c_sec, c_ter, c_in))
+
+    rig_names = []
+    rig = []
+    rig0 = len(J)
+    for e in s.rig.elements:
+        names.append(e.name)
+        rig_names.append(e.name)
+        J.append(e.inertia)
+        rig.append((e.shaft_stiffness, e.shaft_damping, e.inertia_damping))
+    trans = rig0 + rig_names.index(s.rig.output_transducer)
+
+    P = np.zeros(P_SIZE)
+    P[P_OMEGA0] = omega0
+    P[P_DT] = s.solver.time_step
+    P[P_G1:P_G6 + 1] = (fr.gamma1, fr.gamma2, fr.gamma3, fr.gamma4, fr.gamma5, fr.gamma6)
+    P[P_HS_ON] = 1.0 if s.hardstops.enabled else 0.0
+    P[P_HS_K] = s.hardstops.stiffness
+    P[P_HS_D] = s.hardstops.damping
+    P[P_HSP_O] = s.outer.hardstop_positive
+    P[P_HSN_O] = s.outer.hardstop_negative
+    P[P_HSP_I] = s.inner.hardstop_positive
+    P[P_HSN_I] = s.inner.hardstop_negative
+    P[P_KP] = s.motor.proportional_gain
+    P[P_KI] = s.motor.integral_gain
+    P[P_HELD] = 1.0 if s.motor.mode == "held" else 0.0
+    P[P_NRIG] = len(rig)
+    P[P_RIG0] = rig0
+    P[P_TRANS] = trans
+    P[P_VMAX] = 50.0 * max(abs(omega0), 100.0) + 5000.0
+    return Layout(
+        P=P,
+        SF=np.array(SF, dtype=np.float64),
+        SI=np.array(SI, dtype=np.int64),
+        J=np.array(J, dtype=np.float64),
+        contacts_idx=np.array(contacts_idx, dtype=np.int64).reshape(-1, 2),
+        contacts_f=np.array(contacts_f, dtype=np.float64).reshape(-1, 2),
+        singles=np.array(singles, dtype=np.int64).reshape(-1, 2),
+        pairs=np.array(pairs, dtype=np.int64).reshape(-1, 5),
+        rig=np.array(rig, dtype=np.float64).reshape(-1, 3),
+        dof_names=tuple(names),
+        springs=tuple(springs),
+        n_nodes=n_nodes,
+        rig_names=tuple(rig_names),
+    )
+
+
+def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+    """Unloaded start: bodies at zero angle and zero relative speed; each spring's masses
+    spread evenly over the arc the spring occupies (its free arc, or the slot when the
+    slot is shorter, i.e. preloaded), centred in the slot."""
+    q = np.zeros(layout.ndof)
+    v = np.zeros(layout.ndof)
+    for k in range(len(layout.SF)):
+        row, irow = layout.SF[k], layout.SI[k]
+        n = int(irow[I_N])
+        slot_lo = max(row[F_PHIPS], row[F_PHISS])
+        slot_hi = row[F_PITCH] - slot_lo
+        length = min(n * row[F_PHISEG], slot_hi - slot_lo)
+        x0 = 0.5 * (slot_lo + slot_hi) - 0.5 * length
+        for i in range(1, n):
+            x = x0 + i * length / n
+            q[irow[I_OFF] + i - 1] = q[int(irow[I_A])] - x
+    return q, v
+
+
+def slot_limits(row) -> tuple[float, float]:
+    """(lowest, highest) slot coordinate at zero windup [rad] for a spring table row."""
+    lo = max(row[F_PHIPS], row[F_PHISS])
+    return lo, row[F_PITCH] - lo
+
+
+_ = math

@@ -1,0 +1,42 @@
+"""Unit conversions used at the edges (CLI, UI, files); the library itself is SI."""
+
+import math
+
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+DEG_TO_RAD = math.pi / 180.0
+BAR_TO_PA = 1.0e5
+
+
+def rpm_to_rad_s(rpm):
+    """Shaft speed [rpm] -> angular speed [rad/s]."""
+    return rpm * RPM_TO_RAD_S
+
+
+def rad_s_to_rpm(omega):
+    """Angular speed [rad/s] -> shaft speed [rpm]."""
+    return omega / RPM_TO_RAD_S
+
+
+def deg_to_rad(deg):
+    """Angle [deg] -> [rad]."""
+    return deg * DEG_TO_RAD
+
+
+def rad_to_deg(rad):
+    """Angle [rad] -> [deg]."""
+    return rad / DEG_TO_RAD
+
+
+def bar_to_pa(bar):
+    """Pressure [bar] -> [Pa]."""
+    return bar * BAR_TO_PA
+
+
+def pa_to_bar(pa):
+    """Pressure [Pa] -> [bar]."""
+    return pa / BAR_TO_PA
+
+
+def order_frequency_hz(order, omega):
+    """Frequency [Hz] of engine order ``order`` at shaft speed ``omega`` [rad/s]."""
+    return order * omega / (2.0 * math.pi)

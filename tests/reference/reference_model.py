@@ -1,0 +1,161 @@
+"""A slow, readable NumPy reference of the damper equations (model-spec §2-6).
+
+It is written from the specification, not from the kernel: objects and plain loops, no
+numba, no flattened tables. The kernel's right-hand side must agree with it.
+
+State convention (the documented DOF order of :mod:`dampersim.solver.layout`):
+J_pri, J_sec, J_ter; the N_o-1 outer-spring masses; the N_i-1 masses of the nested
+pair's outer spring; the N_i-1 masses of its inner spring; the rig elements (motor
+last). Angles are taken in a frame turning at Omega0, speeds relative to Omega0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def makkar(v, g):
+    """Friction coefficient at slip speed v [m/s] ([thesis] Eq. 27)."""
+    g1, g2, g3, g4, g5, g6 = g
+    return g1 * (np.tanh(g2 * v) - np.tanh(g3 * v)) + g4 * np.tanh(g5 * v) + g6 * v
+
+
+class Spring:
+    """One representative spring of a set between body A (index a) and body B (a+1)."""
+
+    def __init__(self, spring, spring_set, n_seg, a, first_dof, preload):
+        self.k_seg = n_seg * spring.stiffness
+        self.phi_seg = spring.arc / n_seg
+        self.mass = spring.mass / (n_seg - 1)
+        self.r_eff = spring.effective_radius
+        self.n_w = spring.active_coils / n_seg
+        self.count = spring_set.count
+        self.pitch = 2 * math.pi / spring_set.count
+        self.phi_ps = spring_set.primary_stopper_half_width
+        self.phi_ss = spring_set.secondary_stopper_half_width
+        self.n = n_seg
+        self.a = a
+        self.b = a + 1
+        self.dofs = list(range(first_dof, first_dof + n_seg - 1))
+        self.preload = preload
+
+    def nodes(self, q):
+        """Slot coordinates x of the N+1 nodes: x = angle of A minus node angle."""
+        x = np.empty(self.n + 1)
+        x[1:self.n] = q[self.a] - q[self.dofs]
+        w = q[self.a] - q[self.b]
+        x[0] = max(self.phi_ps, w + self.phi_ss, x[1] - self.phi_seg)
+        x[self.n] = min(self.pitch - self.phi_ps, w + self.pitch - self.phi_ss, x[self.n - 1] + self.phi_seg)
+        return x
+
+    def segment_torques(self, q):
+        """Torque of each segment, positive in compression (model-spec §3)."""
+        x = self.nodes(q)
+        return self.k_seg * (self.phi_seg - np.diff(x)), np.diff(x)
+
+    def apply(self, q, v, omega0, torque, normal):
+        """Add this set's spring torques (count springs) to ``torque`` and the normal
+        force on each mass (count springs) to ``normal``."""
+        t, seg = self.segment_torques(q)
+        # torques on the masses (theta direction): T_j - T_{j-1} for the mass at node j
+        for j in range(1, self.n):
+            torque[self.dofs[j - 1]] += self.count * (t[j] - t[j - 1])
+        # the end nodes press on the stopper they touch
+        w = q[self.a] - q[self.b]
+        for end, sign, face_a, face_b in (
+            (0, +1.0, self.phi_ps, w + self.phi_ss),
+            (self.n - 1, -1.0, self.pitch - self.phi_ps, w + self.pitch - self.phi_ss),
+        ):
+            f = sign * self.count * t[end]
+            ahead_b = face_b > face_a if end == 0 else face_b < face_a
+            if face_a == face_b:
+                torque[self.a] += 0.5 * f
+                torque[self.b] += 0.5 * f
+            elif ahead_b:
+                torque[self.b] += f
+            else:
+                torque[self.a] += f
+        # radial forces: centrifugal, redirection (Eq. 21-24), preload
+        f_defl = np.where(t > 0, t / self.r_eff * 2 * self.n_w * np.sin(seg / (2 * self.n_w)), 0.0)
+        for j in range(1, self.n):
+            share_left = 1.0 if j == 1 else 0.5
+            share_right = 1.0 if j == self.n - 1 else 0.5
+            f_red = share_left * f_defl[j - 1] + share_right * f_defl[j]
+            om = omega0 + v[self.dofs[j - 1]]
+            normal[self.dofs[j - 1]] = self.count * (self.mass * self.r_eff * om**2 + f_red + self.preload)
+
+
+def accelerations(system, omega0, q, v, z, tin):
+    """Accelerations [rad/s^2] of all DOFs, friction explicit; motor held -> 0."""
+    s = system
+    no, ni = s.solver.outer_segments, s.solver.inner_segments
+    springs = [Spring(s.outer.spring, s.outer, no, 0, 3, s.friction.outer.preload)]
+    po = Spring(s.inner.spring, s.inner, ni, 1, 3 + no - 1, s.friction.pair_outer.preload)
+    springs.append(po)
+    pi_ = None
+    if s.inner.nested is not None:
+        pi_ = Spring(s.inner.nested, s.inner, ni, 1, 3 + no - 1 + ni - 1, s.friction.pair_inner.preload)
+        springs.append(pi_)
+    rig0 = springs[-1].dofs[-1] + 1
+    elements = s.rig.elements
+    n = rig0 + len(elements)
+    assert len(q) == n
+    inertia = np.zeros(n)
+    inertia[:3] = [s.inertias.primary, s.inertias.secondary, s.inertias.tertiary]
+    for sp in springs:
+        inertia[sp.dofs] = sp.count * sp.mass * sp.r_eff**2
+    torque = np.zeros(n)
+    normal = np.zeros(n)
+    for sp in springs:
+        sp.apply(q, v, omega0, torque, normal)
+    # hardstops: one-sided stiff damped contact on each set's windup
+    if s.hardstops.enabled:
+        for a, st in ((0, s.outer), (1, s.inner)):
+            w = q[a] - q[a + 1]
+            pen = 0.0
+            if w > st.hardstop_positive:
+                pen = w - st.hardstop_positive
+            elif w < st.hardstop_negative:
+                pen = w - st.hardstop_negative
+            if pen != 0.0:
+                t = s.hardstops.stiffness * pen + s.hardstops.damping * (v[a] - v[a + 1])
+                if t * pen < 0:
+                    t = 0.0
+                torque[a] -= t
+                torque[a + 1] += t
+    # rig chain: each shaft joins an element to the body before it (Eq. 34-35)
+    for e, el in enumerate(elements):
+        d = rig0 + e
+        p = 2 if e == 0 else d - 1
+        inertia[d] = el.inertia
+        t = el.shaft_stiffness * (q[p] - q[d]) + el.shaft_damping * (v[p] - v[d])
+        torque[p] -= t
+        torque[d] += t
+        torque[d] -= el.inertia_damping * (omega0 + v[d])
+    torque[0] += tin
+    motor = n - 1
+    if s.motor.mode == "pi":
+        torque[motor] += -s.motor.proportional_gain * v[motor] + s.motor.integral_gain * z
+    # friction (Eq. 27-28)
+    if s.friction.enabled:
+        fr = s.friction
+        g = (fr.gamma1, fr.gamma2, fr.gamma3, fr.gamma4, fr.gamma5, fr.gamma6)
+
+        def rub(mass, housing, alpha, r):
+            t = alpha * makkar((v[mass] - v[housing]) * r, g) * normal[mass] * r
+            torque[mass] -= t
+            torque[housing] += t
+
+        for d in springs[0].dofs:
+            rub(d, 1, fr.outer.alpha, s.outer.spring.friction_radius)
+        for i, d in enumerate(po.dofs):
+            rub(d, 1, fr.pair_outer.alpha * fr.alpha_sec, s.inner.spring.friction_radius)
+            rub(d, 2, fr.pair_outer.alpha * fr.alpha_ter, s.inner.spring.friction_radius)
+            if pi_ is not None:
+                rub(pi_.dofs[i], d, fr.pair_inner.alpha, s.inner.nested.friction_radius)
+    acc = torque / inertia
+    if s.motor.mode == "held":
+        acc[motor] = 0.0
+    return acc
