@@ -189,6 +189,8 @@ def dotted_names(system: m.DamperSystem) -> list[str]:
         for f in dataclasses.fields(obj):
             v = getattr(obj, f.name)
             p = f"{prefix}{f.name}"
+            if v is None:
+                continue
             if dataclasses.is_dataclass(v):
                 walk(v, p + ".")
             elif isinstance(v, tuple):

@@ -88,6 +88,7 @@ R_E_STACK = 19  # energy removed by coil-stacking contacts [J]
 R_SET_O = 20  # torque the outer set's springs pass to J_sec [N m]
 R_SET_I = 21  # torque the inner set's springs pass to J_ter [N m]
 NREC = 22
+THETA = 0.5
 
 
 @njit(cache=True, inline="always")
@@ -345,7 +346,7 @@ def _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6):
     s0 = v0[a] - v0[b]
     ss = v[a] - v[b]
     mu, dmu = makkar(s0 * r, g1, g2, g3, g4, g5, g6)
-    qc = 0.5 * cn * dmu * r
+    qc = THETA * cn * dmu * r
     qi = qc if qc > 0.0 else 0.0
     p = cn * mu - qi * s0 + (qc - qi) * (ss - s0)
     return p, qi, ss
@@ -357,8 +358,9 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt):
 
     Each spring mass (and each nested pair's two masses together) is solved implicitly
     in its slip speeds with the housing bodies' speeds taken as known, then the
-    reactions are applied to the housings (Eq. 25-28). The dissipation is the exact
-    kinetic-energy change of these impulses.
+    reactions are applied to the housings (Eq. 25-28). The dissipation is the work of
+    the friction torques on the end-of-step slips, the speeds that move the positions;
+    measured so, the energy balance closes to O(dt^2) per unit time instead of O(dt).
     """
     g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     diss = 0.0
@@ -372,7 +374,7 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt):
         t = p + q * (vm - v[b])
         v[m] = vm
         v[b] += dt * t / J[b]
-        diss += dt * t * 0.5 * (ss + v[m] - v[b])
+        diss += dt * t * (v[m] - v[b])
     for k in range(PG.shape[0]):
         mo = PG[k, 0]
         mi = PG[k, 1]
@@ -410,12 +412,12 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt):
         t3 = p3 + q3 * (vi - vo)
         if c1 >= 0:
             v[b1] += dt * t1 / J[b1]
-            diss += dt * t1 * 0.5 * (s1 + vo - v[b1])
+            diss += dt * t1 * (vo - v[b1])
         if c2 >= 0:
             v[b2] += dt * t2 / J[b2]
-            diss += dt * t2 * 0.5 * (s2 + vo - v[b2])
+            diss += dt * t2 * (vo - v[b2])
         if c3 >= 0:
-            diss += dt * t3 * 0.5 * (s3 + vi - vo)
+            diss += dt * t3 * (vi - vo)
     return diss
 
 
@@ -518,12 +520,11 @@ def elastic_energy(q, P, SF, SI, RIG, X):
 @njit(cache=True)
 def stacking(q, v, P, SF, SI, J, X, stats):
     """Coil-stacking contact ([thesis] Eq. 29, made momentum-conserving): no segment may
-    be shorter than its block arc. One forward sweep per step.
+    be shorter than its block arc. Gauss-Seidel sweeps over the segments until no
+    segment is short by more than 1e-6 of its block arc (at most 4 N sweeps).
 
-    stats[0] accumulates kinetic energy removed by impulses [J] (relative-speed basis,
-    see :func:`integrate`), stats[1] counts contacts.
+    stats[0] accumulates kinetic energy removed by impulses [J], stats[1] counts contacts.
     """
-    spring_nodes(q, P, SF, SI, X)
     for s in range(SF.shape[0]):
         a = SI[s, I_A]
         b = a + 1
@@ -531,26 +532,33 @@ def stacking(q, v, P, SF, SI, J, X, stats):
         off = SI[s, I_OFF]
         base = SI[s, I_NODE]
         block = SF[s, F_BLOCK]
-        # end segment 0: node 0 rests on a stopper (or is free, then it is relaxed)
-        seg = X[base + 1] - X[base]
-        if seg < block:
-            fa = SF[s, F_PHIPS]
-            fb = q[a] - q[b] + SF[s, F_PHISS]
-            body = b if fb >= fa else a
-            _stack_pair(q, v, J, body, off, block - seg, stats)
-        for j in range(1, n - 1):
-            xa = q[a] - q[off + j - 1]
-            xb = q[a] - q[off + j]
-            seg = xb - xa
-            if seg < block:
-                _stack_pair(q, v, J, off + j - 1, off + j, block - seg, stats)
-        spring_nodes(q, P, SF, SI, X)
-        seg = X[base + n] - X[base + n - 1]
-        if seg < block:
-            fa = SF[s, F_PITCH] - SF[s, F_PHIPS]
-            fb = q[a] - q[b] + SF[s, F_PITCH] - SF[s, F_PHISS]
-            body = b if fb <= fa else a
-            _stack_pair(q, v, J, off + n - 2, body, block - seg, stats)
+        tol = 1e-6 * block
+        for sweep in range(4 * n):
+            moved = False
+            spring_nodes(q, P, SF, SI, X)
+            # end segment 0: node 0 rests on a stopper (or is free, then it is relaxed)
+            seg = X[base + 1] - X[base]
+            if seg < block - tol:
+                fa = SF[s, F_PHIPS]
+                fb = q[a] - q[b] + SF[s, F_PHISS]
+                body = b if fb >= fa else a
+                _stack_pair(q, v, J, body, off, block - seg, stats)
+                moved = True
+            for j in range(1, n - 1):
+                seg = q[off + j - 1] - q[off + j]
+                if seg < block - tol:
+                    _stack_pair(q, v, J, off + j - 1, off + j, block - seg, stats)
+                    moved = True
+            spring_nodes(q, P, SF, SI, X)
+            seg = X[base + n] - X[base + n - 1]
+            if seg < block - tol:
+                fa = SF[s, F_PITCH] - SF[s, F_PHIPS]
+                fb = q[a] - q[b] + SF[s, F_PITCH] - SF[s, F_PHISS]
+                body = b if fb <= fa else a
+                _stack_pair(q, v, J, off + n - 2, body, block - seg, stats)
+                moved = True
+            if not moved:
+                break
 
 
 @njit(cache=True)
@@ -592,13 +600,20 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     e_stack = 0.0
     irec = 0
     iseg = 0
+    vx = np.zeros(ndof)
+    vprev = v.copy()
     for step in range(nsteps):
         tin = torque[step]
         record = (step % rec_every == 0) and irec < rec.shape[0]
+        # v holds the speeds half a step before q's time; velocity-dependent forces use
+        # the speeds extrapolated to q's time (second order; plain v would make the
+        # viscous terms first order)
+        for i in range(ndof):
+            vx[i] = 1.5 * v[i] - 0.5 * vprev[i]
         if record:
-            energy = forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, row)
+            energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, row)
         else:
-            energy = forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, empty)
+            energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, empty)
         if record:
             ke = 0.0
             for i in range(ndof):
@@ -637,6 +652,8 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
         #    slips, with the housing bodies' speeds taken as known (Eq. 27-28)
         e_fric += friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt)
         # 3) PI state and positions
+        for i in range(ndof):
+            vprev[i] = v0[i]
         z -= dt * v[motor]
         for i in range(ndof):
             q[i] += dt * v[i]

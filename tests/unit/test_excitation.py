@@ -1,0 +1,53 @@
+"""Excitation sources: order sums with start-up, parsing, ramps, measured drive."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dampersim.errors import InputError
+from dampersim.excitation import MeasuredTorque, OrderSum, PROTOCOLS, parse_orders, ramp_protocol
+
+
+def test_order_sum_startup_and_steady_signal():
+    w = 2 * math.pi * 25.0
+    ex = OrderSum(speed=w, mean_torque=200.0, orders=((2, 300.0, 0.0), (0.5, 10.0, math.pi / 2)))
+    t = np.array([0.0, 0.15, 0.3, 0.45, 1.0])
+    y = ex.torque(t)
+    assert y[0] == 0.0 and y[1] == pytest.approx(100.0)  # mean ramp, no fluctuation yet
+    assert y[2] == pytest.approx(200.0)
+    steady = 200 + 300 * math.cos(2 * w * 1.0) + 10 * math.cos(0.5 * w * 1.0 + math.pi / 2)
+    assert y[4] == pytest.approx(steady, abs=1e-9)
+
+
+def test_parse_orders_forms_and_errors():
+    assert parse_orders("2:300,4:100@90") == ((2.0, 300.0, 0.0), (4.0, 100.0, math.pi / 2))
+    assert parse_orders("1.5:20") == ((1.5, 20.0, 0.0),)
+    for bad in ("2:", "x:3", "2:300,2:100", "-1:20", "2;300"):
+        with pytest.raises(InputError) as e:
+            parse_orders(bad)
+        assert "accepted" in str(e.value) or "twice" in str(e.value) or "must be" in str(e.value)
+
+
+def test_ramp_protocol_table_3_1():
+    r = ramp_protocol("full-450", speed=100.0)
+    kt, ky = r.knots()
+    assert list(ky) == [0, 0, 450, 450, -180, -180, 0, 0]
+    # 450 N m at 50 N m/s takes 9 s; 2 s hold at each peak
+    assert kt[2] - kt[1] == pytest.approx(9.0) and kt[3] - kt[2] == pytest.approx(2.0)
+    assert set(PROTOCOLS) >= {"full-100", "full-450", "full-500"}
+    with pytest.raises(InputError):
+        ramp_protocol("full-999", speed=100.0)
+
+
+def test_measured_drive_joins_record_without_jump():
+    t = np.arange(0, 1.0, 1e-4)
+    y = 250 + 80 * np.sin(2 * np.pi * 50 * t + 0.3)
+    m = MeasuredTorque(speed=100.0, time=t, torque_samples=y)
+    tt = np.array([0.0, m.steady_start - 1e-9, m.steady_start, m.steady_start + 0.5])
+    out = m.torque(tt)
+    assert out[0] == pytest.approx(0.0, abs=1e-6)
+    assert out[1] == pytest.approx(out[2], abs=1e-3)
+    assert out[3] == pytest.approx(np.interp(0.5, t, y))
+    with pytest.raises(InputError):
+        MeasuredTorque(speed=100.0, time=t, torque_samples=np.where(t > 0.5, np.nan, y))
