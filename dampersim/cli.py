@@ -165,6 +165,12 @@ def build_parser() -> argparse.ArgumentParser:
     pa.add_argument("file", nargs="?", default=None)
     pa.add_argument("--set", action="append", metavar="NAME=VALUE")
     pa.set_defaults(func=cmd_params)
+
+    from dampersim.analysis.commands import add_parsers as add_analysis
+    from dampersim.sweeps.commands import add_parsers as add_sweeps
+
+    add_sweeps(sub)
+    add_analysis(sub)
     return p
 
 

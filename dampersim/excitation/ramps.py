@@ -76,4 +76,8 @@ def ramp_protocol(name: str, speed: float, rate: float = 50.0, hold: float = 2.0
         raise InputError(f"protocol {name!r}: accepted is one of {', '.join(PROTOCOLS)}")
     start, pos, neg, end = PROTOCOLS[name]
     pts = [start] + [p for p in (pos, neg) if p is not None] + [end]
+    if start != 0.0:
+        # the model starts unloaded ([thesis] §3.3.1): ramp up to the start torque first
+        # and hold there before the loop itself
+        pts = [0.0] + pts
     return TorqueRamp(speed=speed, points=tuple(pts), rate=rate, hold=hold)

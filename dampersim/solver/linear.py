@@ -122,7 +122,9 @@ def linearise(system: DamperSystem, motor: str = "free") -> LinearModel:
     """Export M, C, K of ``system``; ``motor`` 'free' (no speed control) or 'held'
     (the output motor DOF removed: its shaft ends on ground)."""
     if motor not in ("free", "held"):
-        raise ValueError(f"motor = {motor!r}: accepted is 'free' or 'held'")
+        from dampersim.errors import InputError
+
+        raise InputError(f"output motor = {motor!r}: accepted is 'free' or 'held'")
     lay, M, C, K = _assemble(system)
     names = list(lay.dof_names)
     trans = names.index(system.rig.output_transducer)
