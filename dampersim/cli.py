@@ -93,20 +93,9 @@ def cmd_simulate(args) -> int:
 
 
 def _write_parquet(frame, path):
-    import os
-    import tempfile
+    from dampersim.fileio import write_parquet_atomic
 
-    directory = os.path.dirname(os.path.abspath(path)) or "."
-    if not os.path.isdir(directory):
-        raise InputError(f"--out {path!r}: folder {directory!r} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix=".parquet.tmp")
-    os.close(fd)
-    try:
-        frame.to_parquet(tmp, index=False)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    write_parquet_atomic(frame, path)
 
 
 def cmd_modes(args) -> int:

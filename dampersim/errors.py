@@ -16,10 +16,14 @@ class ParameterError(DampersimError, ValueError):
         self.field = field
         self.value = value
         self.accepted = accepted
+        self.hint = hint
         msg = f"{field} = {value!r}: accepted is {accepted}"
         if hint:
             msg += f" ({hint})"
         super().__init__(msg)
+
+    def __reduce__(self):  # survive pickling across process pools and Dask workers
+        return (type(self), (self.field, self.value, self.accepted, self.hint))
 
 
 class InputError(DampersimError, ValueError):
@@ -37,3 +41,6 @@ class SimulationDiverged(DampersimError, RuntimeError):
             f"simulation diverged at t = {time:.6f} s ({reason}); "
             f"try a smaller time step than {time_step:g} s (--set solver.time_step=...)"
         )
+
+    def __reduce__(self):
+        return (type(self), (self.time, self.reason, self.time_step))

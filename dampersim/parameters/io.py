@@ -10,8 +10,6 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
-import os
-import tempfile
 import tomllib
 
 import tomli_w
@@ -158,17 +156,9 @@ def loads_toml(text: str) -> m.DamperSystem:
 
 def save_toml(system: m.DamperSystem, path) -> None:
     """Write ``system`` to ``path`` atomically (temporary file + rename)."""
-    text = dumps_toml(system)
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".params-", suffix=".toml")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from dampersim.fileio import write_text_atomic
+
+    write_text_atomic(path, dumps_toml(system))
 
 
 def load_toml(path) -> m.DamperSystem:

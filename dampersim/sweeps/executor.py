@@ -1,0 +1,660 @@
+"""Run a sweep of test points: cache look-up, then serial, process-pool or Dask execution.
+
+:func:`run_sweep` takes every point it can from the result cache
+(:mod:`dampersim.sweeps.cache`) and computes only the misses:
+
+* ``"serial"``: one after the other in this process;
+* ``"processes"`` (default): a ``ProcessPoolExecutor`` over all cores, started with the
+  ``spawn`` method (no fork of a process that may hold numba/OpenMP threads). The parent
+  loads or compiles the kernel once before the pool starts, so workers only load numba's
+  on-disk cache (wherever numba keeps it for this installation; ``NUMBA_CACHE_DIR`` is
+  inherited when set and not touched otherwise). Scripts that call it need the usual
+  ``if __name__ == "__main__":`` guard of spawned multiprocessing;
+* ``"dask"``: a ``distributed`` scheduler at ``scheduler=`` or ``$DAMPERSIM_SCHEDULER``
+  (a local cluster on this machine when neither is set). Workers must run the same
+  dampersim version and source; a worker that does not is refused.
+
+Only the parent writes the cache, one transaction per point, as results arrive: a
+cancelled or failed sweep keeps every finished point and never leaves a partial entry.
+The table follows the thesis's analysis ([thesis] §3.4): order amplitudes of input and
+output torque and their magnification ratio per test point and engine order.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import signal
+import time
+import traceback
+from concurrent import futures as cf
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+import dampersim
+from dampersim.fileio import write_parquet_atomic
+from dampersim.errors import DampersimError, InputError
+from dampersim.sweeps import cache as _cache
+from dampersim.sweeps.grid import TestPoint
+
+#: Accepted values of ``executor``.
+EXECUTORS = ("processes", "serial", "dask")
+#: Environment variable with the address of a Dask scheduler (e.g. tcp://host:8786).
+SCHEDULER_ENV = "DAMPERSIM_SCHEDULER"
+#: Seconds allowed to connect to a Dask scheduler.
+CONNECT_TIMEOUT = 5.0
+#: Seconds to wait for a reachable scheduler that has no workers yet.
+WORKER_WAIT = 30.0
+#: Orders in the table by default: the first eight engine orders ([thesis] §3.4).
+DEFAULT_ORDERS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)
+#: Magnification is NaN where the input amplitude is below this share of the point's
+#: largest input amplitude (an order that is not excited has no meaningful ratio).
+MIN_INPUT_REL = 1e-3
+
+TABLE_COLUMNS = (
+    "point",
+    "speed_rpm",
+    "speed_rad_s",
+    "mean_torque_nm",
+    "order",
+    "frequency_hz",
+    "input_amplitude_nm",
+    "output_amplitude_nm",
+    "magnification",
+)
+
+
+class SweepCancelled(DampersimError):
+    """The sweep was cancelled; finished points are in the cache.
+
+    completed: points finished (computed now or taken from the cache); total: points in
+    the sweep; computed / from_cache: how ``completed`` splits up.
+    """
+
+    def __init__(self, completed, total, computed=0, from_cache=0):
+        self.completed = int(completed)
+        self.total = int(total)
+        self.computed = int(computed)
+        self.from_cache = int(from_cache)
+        super().__init__(
+            f"sweep cancelled after {self.completed} of {self.total} test points "
+            f"({self.computed} computed, {self.from_cache} from the cache); the finished points "
+            "are kept in the cache, run the same sweep again to continue"
+        )
+
+    def __reduce__(self):
+        return (type(self), (self.completed, self.total, self.computed, self.from_cache))
+
+
+class SweepPointFailed(DampersimError):
+    """One test point could not be computed (e.g. the simulation diverged).
+
+    speed_rpm [rpm], mean_torque [N m]: the point; reason: the original message;
+    error_type: the original exception's class name.
+    """
+
+    def __init__(self, speed_rpm, mean_torque, error_type, reason):
+        self.speed_rpm = float(speed_rpm)
+        self.mean_torque = float(mean_torque)
+        self.error_type = str(error_type)
+        self.reason = str(reason)
+        super().__init__(
+            f"test point {self.speed_rpm:g} rpm, {self.mean_torque:g} N m failed "
+            f"({self.error_type}): {self.reason}; the points finished so far are cached"
+        )
+
+    def __reduce__(self):
+        return (type(self), (self.speed_rpm, self.mean_torque, self.error_type, self.reason))
+
+
+# --------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """Outcome of :func:`run_sweep`.
+
+    table: one row per test point and order, columns ``point`` (index into
+    ``test_points``), ``speed_rpm``, ``speed_rad_s``, ``mean_torque_nm``, ``order``,
+    ``frequency_hz`` (order x speed / 2 pi), ``input_amplitude_nm``,
+    ``output_amplitude_nm`` and ``magnification`` (output / input, NaN where the input is
+    below 1e-3 of the point's largest input amplitude) -- [thesis] §3.4.
+    points: one row per test point (speeds, mean torque [N m], mean input/output torque
+    over the window [N m], kernel wall time and compute time [s], from_cache).
+    frequency_hz: bins [Hz] of the spectra; input_spectra, output_spectra: float32 arrays
+    [n_points, n_bins] of amplitude spectra [N m] up to 1000 Hz (FFT colourmaps, [thesis]
+    §6.2.1). wall_time: seconds the whole sweep took; computed / from_cache: how many of
+    the test points were simulated now / read from the cache (a point listed twice is
+    simulated once and counted twice).
+    """
+
+    table: pd.DataFrame
+    points: pd.DataFrame
+    test_points: tuple
+    frequency_hz: np.ndarray
+    input_spectra: np.ndarray
+    output_spectra: np.ndarray
+    wall_time: float
+    computed: int
+    from_cache: int
+    executor: str
+    keys: tuple
+
+    @property
+    def n_points(self) -> int:
+        return len(self.test_points)
+
+    def colourmap(self, which="output", mean_torque=None):
+        """FFT colourmap data of a speed sweep ([thesis] §6.2.1, Fig. 6.12).
+
+        which: "input" or "output" torque; mean_torque [N m]: select that torque level
+        (needed when the sweep has several). Returns ``(speed_rpm, frequency_hz, amp)``
+        with ``amp[i, j]`` the amplitude [N m] at speed i (ascending) and frequency j.
+        """
+        if which not in ("input", "output"):
+            raise InputError(f"which = {which!r}: accepted is 'input' or 'output'")
+        spectra = self.input_spectra if which == "input" else self.output_spectra
+        torques = self.points["mean_torque_nm"].to_numpy()
+        levels = np.unique(torques)
+        if mean_torque is None:
+            if levels.size > 1:
+                raise InputError(
+                    f"the sweep has {levels.size} mean torque levels; pass mean_torque= one of "
+                    f"{', '.join(f'{v:g}' for v in levels)} N m"
+                )
+            mean_torque = levels[0]
+        sel = np.flatnonzero(np.isclose(torques, float(mean_torque), rtol=0, atol=1e-9))
+        if sel.size == 0:
+            raise InputError(
+                f"mean_torque = {mean_torque!r} N m is not in the sweep; accepted is one of "
+                f"{', '.join(f'{v:g}' for v in levels)} N m"
+            )
+        speeds = self.points["speed_rpm"].to_numpy()[sel]
+        order = np.argsort(speeds, kind="stable")
+        return speeds[order], self.frequency_hz, spectra[sel[order]]
+
+    def spectra(self, which="output") -> list:
+        """Per-point spectra as ``[(speed [rad/s], frequency [Hz], amplitude [N m]), ...]``,
+        the form :func:`dampersim.analysis.colourmap.colourmap` accepts; which: "input" or
+        "output" torque."""
+        if which not in ("input", "output"):
+            raise InputError(f"which = {which!r}: accepted is 'input' or 'output'")
+        spectra = self.input_spectra if which == "input" else self.output_spectra
+        return [(p.speed, self.frequency_hz, spectra[i].astype(float)) for i, p in enumerate(self.test_points)]
+
+    def to_parquet(self, path) -> str:
+        """Write :attr:`table` to ``path`` atomically (temporary file + rename); returns
+        the absolute path."""
+        return write_parquet_atomic(self.table, path)
+
+
+# --------------------------------------------------------------------------- worker side
+def _environment() -> tuple:
+    """What a worker must share with the parent for its result to match the key."""
+    return (dampersim.__version__, _cache.kernel_source_hash())
+
+
+def _compute_task(system, point, duration, window, key, expected_env):
+    """Compute one point; runs in a worker. Never raises: returns ("ok", record bytes),
+    ("mismatch", worker environment) or ("error", type name, message) so that no
+    exception has to survive pickling between processes."""
+    try:
+        env = _environment()
+        if tuple(env) != tuple(expected_env):
+            return ("mismatch", env)
+        record = _cache.compute_record(system, point, duration=duration, window=window, key=key)
+        return ("ok", record.to_bytes())
+    except DampersimError as exc:
+        return ("error", type(exc).__name__, str(exc))
+    except Exception as exc:  # report, do not lose, unexpected failures
+        return ("error", type(exc).__name__, f"{exc}\n{traceback.format_exc()}")
+
+
+def _pool_initializer():
+    # Ctrl-C goes to the whole process group: let the parent decide (it cancels cleanly).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        from dampersim.simulation import ensure_compiled
+
+        ensure_compiled()
+    except Exception:  # the first task will report the problem with context
+        pass
+
+
+# --------------------------------------------------------------------------- backends
+class _PoolBackend:
+    name = "processes"
+
+    def __init__(self, workers):
+        ctx = multiprocessing.get_context("spawn")
+        self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_initializer)
+        self.slots = workers
+
+    def submit(self, *args):
+        return self.pool.submit(_compute_task, *args)
+
+    def wait(self, fs, timeout):
+        done, _ = cf.wait(list(fs), timeout=timeout, return_when=cf.FIRST_COMPLETED)
+        return done
+
+    def cancel(self, fut) -> bool:
+        return fut.cancel()
+
+    def result(self, fut):
+        return fut.result()
+
+    def close(self, abort=False):
+        self.pool.shutdown(wait=not abort, cancel_futures=True)
+
+
+class _DaskBackend:
+    name = "dask"
+
+    def __init__(self, address, workers):
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError(
+                "executor 'dask' needs dask[distributed]; install it with "
+                "pip install 'dampersim[dask]'"
+            ) from None
+        self.cluster = None
+        if address is None:
+            n = workers or _cpu_count()
+            self.cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                dashboard_address=None,
+            )
+            address = self.cluster.scheduler_address
+        self.address = address
+        try:
+            self.client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except Exception as exc:
+            self._close_cluster()
+            raise InputError(
+                f"cannot reach the Dask scheduler at {address!r} within {CONNECT_TIMEOUT:g} s "
+                f"({type(exc).__name__}: {exc}); start one (e.g. `dask scheduler` and "
+                f"`dask worker ADDRESS`) or pass another address with --scheduler / "
+                f"{SCHEDULER_ENV}"
+            ) from None
+        try:
+            nthreads = sum(self.client.nthreads().values())
+            if nthreads == 0:
+                self.client.wait_for_workers(1, timeout=WORKER_WAIT)
+                nthreads = sum(self.client.nthreads().values())
+        except Exception:
+            self.close(abort=True)
+            raise InputError(
+                f"the Dask scheduler at {address!r} has no workers (waited {WORKER_WAIT:g} s); "
+                "start workers with `dask worker ADDRESS`"
+            ) from None
+        self.slots = max(1, nthreads)
+
+    def submit(self, *args):
+        return self.client.submit(_compute_task, *args, pure=False)
+
+    def wait(self, fs, timeout):
+        deadline = time.monotonic() + timeout
+        while True:
+            done = {f for f in fs if f.done()}
+            if done or time.monotonic() >= deadline:
+                return done
+            time.sleep(0.02)
+
+    def cancel(self, fut) -> bool:
+        return False  # every submitted task is running (in-flight <= worker threads): let it finish
+
+    def result(self, fut):
+        return fut.result()
+
+    def _close_cluster(self):
+        if self.cluster is not None:
+            try:
+                self.cluster.close()
+            except Exception:
+                pass
+            self.cluster = None
+
+    def close(self, abort=False):
+        try:
+            self.client.close()
+        except Exception:
+            pass
+        self._close_cluster()
+
+
+def _cpu_count() -> int:
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _cancel_check(cancel):
+    if cancel is None:
+        return lambda: False
+    if hasattr(cancel, "is_set"):
+        return cancel.is_set
+    if callable(cancel):
+        return lambda: bool(cancel())
+    raise InputError(f"cancel = {cancel!r}: accepted is a threading.Event or a function returning True to cancel")
+
+
+def _resolve_executor(executor, scheduler):
+    env_sched = os.environ.get(SCHEDULER_ENV, "").strip() or None
+    if executor is None:
+        executor = "dask" if (scheduler or env_sched) else "processes"
+    if executor not in EXECUTORS:
+        raise InputError(f"executor = {executor!r}: accepted is one of {', '.join(EXECUTORS)}")
+    if scheduler is not None and executor != "dask":
+        raise InputError(
+            f"a Dask scheduler ({scheduler!r}) was given with executor = {executor!r}; "
+            "accepted is executor 'dask' (or no executor) together with a scheduler"
+        )
+    address = (scheduler or env_sched) if executor == "dask" else None
+    if address is not None and not isinstance(address, str):
+        raise InputError(f"scheduler = {address!r}: accepted is an address such as tcp://host:8786")
+    return executor, address
+
+
+def _check_window(system, point, duration, window):
+    exc = point.excitation()
+    dur = _cache.resolved_duration(system, exc, duration)
+    steady = float(getattr(exc, "steady_start", 0.0))
+    if window > dur - steady + 1e-9:
+        raise InputError(
+            f"analysis window {window:g} s does not fit after the start-up ({steady:g} s) of a "
+            f"{dur:g} s simulation; accepted is a window up to {max(dur - steady, 0):g} s or a "
+            f"duration of at least {steady + window:g} s"
+        )
+    f1 = point.speed / (2.0 * math.pi)
+    need = 4.0 / f1  # half orders 0.5 f1 apart need a resolution finer than 0.25 f1
+    if window <= 1.01 * need:  # 1 % margin for rounding the window to whole samples
+        raise InputError(
+            f"analysis window {window:g} s is too short to separate half orders at "
+            f"{point.speed_rpm:g} rpm; accepted is a window longer than {1.01 * need:.3g} s"
+        )
+
+
+# --------------------------------------------------------------------------- run_sweep
+def run_sweep(
+    system,
+    points,
+    executor=None,
+    workers=None,
+    scheduler=None,
+    progress=None,
+    cancel=None,
+    *,
+    duration=None,
+    window=None,
+    orders=DEFAULT_ORDERS,
+    cache=None,
+) -> SweepResult:
+    """Simulate every test point (or take it from the cache) and tabulate the orders.
+
+    Args:
+        system: :class:`dampersim.DamperSystem` (validated here).
+        points: sequence of :class:`TestPoint` (speed [rad/s], mean torque [N m],
+            orders), e.g. from :func:`dampersim.sweeps.grid.make_grid`; the thesis steps
+            speed sweeps by 10 rpm ([thesis] §3.3.2).
+        executor: "processes" (all cores), "serial" or "dask"; default "dask" when a
+            scheduler is given or ``$DAMPERSIM_SCHEDULER`` is set, else "processes".
+        workers: number of processes (default: all cores) or of local Dask workers.
+        scheduler: Dask scheduler address (default ``$DAMPERSIM_SCHEDULER``); it must
+            answer within 5 s.
+        progress: ``progress(done, total, from_cache)`` called after the cache look-up
+            and after every computed point; ``done`` and ``from_cache`` count test points.
+        cancel: ``threading.Event`` or function returning True: stop submitting, finish
+            or cancel what is running, keep finished points cached, raise SweepCancelled.
+        duration: simulated time per point [s] (default: ``system.solver.duration``).
+        window: analysis window at the end of each record [s] (default 1.25 s,
+            [thesis] §3.4); it must fit after the start-up ramps.
+        orders: engine orders in the table (any of 0.5, 1, ..., 8).
+        cache: None for the default :class:`ResultCache` (``$DAMPERSIM_CACHE_DIR``), a
+            ResultCache, or False to neither read nor write a cache.
+
+    Returns:
+        :class:`SweepResult`.
+
+    Raises:
+        InputError: bad arguments, window not fitting, unreachable scheduler.
+        ParameterError: invalid parameters.
+        SweepCancelled: cancelled (``completed`` says how many points are done).
+        SweepPointFailed: a point failed (e.g. diverged); finished points stay cached.
+    """
+    from dampersim.parameters import validate
+    from dampersim.results import ANALYSIS_WINDOW
+
+    t_start = time.perf_counter()
+    validate(system)
+    points = tuple(points) if points is not None else ()
+    if not points:
+        raise InputError("a sweep needs at least one test point")
+    for p in points:
+        if not isinstance(p, TestPoint):
+            raise InputError(f"test point {p!r}: accepted are dampersim.sweeps.TestPoint objects")
+    window = ANALYSIS_WINDOW if window is None else float(window)
+    if not (math.isfinite(window) and window > 0):
+        raise InputError(f"window = {window!r} s: accepted is a positive analysis window")
+    if duration is not None:
+        duration = float(duration)
+        if not (math.isfinite(duration) and duration > 0):
+            raise InputError(f"duration = {duration!r} s: accepted is a positive duration")
+    try:
+        orders = tuple(float(k) for k in np.atleast_1d(np.asarray(orders, dtype=float)).ravel())
+    except (TypeError, ValueError):
+        raise InputError(f"orders = {orders!r}: accepted are engine orders among 0.5, 1, ..., 8") from None
+    if not orders:
+        raise InputError("orders: accepted is at least one engine order")
+    for k in orders:
+        _cache._order_index(_cache.STORED_ORDERS, k)
+    if workers is not None:
+        if isinstance(workers, bool) or int(workers) != workers or int(workers) < 1:
+            raise InputError(f"workers = {workers!r}: accepted is a whole number >= 1")
+        workers = int(workers)
+    executor, address = _resolve_executor(executor, scheduler)
+    is_cancelled = _cancel_check(cancel)
+    for p in points:
+        _check_window(system, p, duration, window)
+
+    own_cache = cache is None
+    if cache is not None and cache is not False and not isinstance(cache, _cache.ResultCache):
+        raise InputError(f"cache = {cache!r}: accepted is None (default cache), False or a ResultCache")
+    # (an empty ResultCache is falsy through __len__: compare with False explicitly)
+    store = _cache.ResultCache() if own_cache else (None if cache is False else cache)
+    try:
+        return _run(system, points, executor, address, workers, progress, is_cancelled,
+                    duration, window, orders, store, t_start)
+    finally:
+        if own_cache:
+            store.close()
+
+
+def _run(system, points, executor, address, workers, progress, is_cancelled,
+         duration, window, orders, store, t_start):
+    source = _cache.kernel_source_hash()
+    env = (dampersim.__version__, source)
+    keys = tuple(_cache.cache_key(system, p, duration, window, source_hash=source) for p in points)
+    slots_of: dict[str, list[int]] = {}
+    for i, k in enumerate(keys):
+        slots_of.setdefault(k, []).append(i)
+    total = len(points)
+
+    records: dict[str, _cache.PointRecord] = {}
+    cached_keys = set()
+    if store is not None:
+        for k in slots_of:
+            rec = store.get(k)
+            if rec is not None:
+                records[k] = rec
+                cached_keys.add(k)
+    state = {"done": sum(len(slots_of[k]) for k in cached_keys), "computed": 0}
+    n_from_cache = state["done"]
+    if progress is not None:
+        progress(state["done"], total, n_from_cache)
+
+    missing = [k for k in slots_of if k not in records]
+    first_point = {k: points[slots_of[k][0]] for k in missing}
+
+    def finish(k, outcome):
+        status = outcome[0]
+        p = first_point[k]
+        if status == "ok":
+            try:
+                rec = _cache.PointRecord.from_bytes(outcome[1], key=k)
+            except ValueError as exc:
+                return SweepPointFailed(p.speed_rpm, p.mean_torque, "ValueError", f"result damaged in transfer: {exc}")
+            if store is not None:
+                store.put(k, outcome[1])
+            records[k] = rec
+            state["done"] += len(slots_of[k])
+            state["computed"] += len(slots_of[k])
+            if progress is not None:
+                progress(state["done"], total, n_from_cache)
+            return None
+        if status == "mismatch":
+            return InputError(
+                f"a worker runs dampersim {outcome[1][0]} with kernel source {outcome[1][1][:12]}, "
+                f"this process {env[0]} with {env[1][:12]}; its results would not match the cache "
+                "key: run the same dampersim on every worker (and restart processes that loaded "
+                "dampersim before its source changed)"
+            )
+        return SweepPointFailed(p.speed_rpm, p.mean_torque, outcome[1], outcome[2])
+
+    failure = None
+    cancelled = bool(missing) and is_cancelled()
+    if missing and not cancelled:
+        if executor == "serial":
+            for k in missing:
+                if is_cancelled():
+                    cancelled = True
+                    break
+                failure = finish(k, _compute_task(system, first_point[k], duration, window, k, env))
+                if failure is not None:
+                    break
+        else:
+            if executor == "processes":
+                from dampersim.simulation import ensure_compiled
+
+                if _cache._read_source_hash() != source:
+                    raise InputError(
+                        "dampersim's source files changed on disk after this process loaded them: "
+                        "new worker processes would run other code than the cache keys describe; "
+                        "restart this process (or use executor='serial')"
+                    )
+
+                ensure_compiled()  # compile once here so workers only load numba's disk cache
+                backend = _PoolBackend(min(workers or _cpu_count(), len(missing)))
+            else:
+                backend = _DaskBackend(address, workers)
+            queue = list(missing)
+            inflight = {}
+            abort = True
+            try:
+                while queue or inflight:
+                    if not cancelled and failure is None and is_cancelled():
+                        cancelled = True
+                    if cancelled or failure is not None:
+                        queue.clear()
+                        for f in list(inflight):
+                            if backend.cancel(f):
+                                inflight.pop(f)
+                    while queue and len(inflight) < backend.slots:
+                        k = queue.pop(0)
+                        inflight[backend.submit(system, first_point[k], duration, window, k, env)] = k
+                    if not inflight:
+                        break
+                    for f in backend.wait(inflight, 0.1):
+                        k = inflight.pop(f)
+                        try:
+                            outcome = backend.result(f)
+                        except Exception as exc:  # worker died, lost connection, ...
+                            outcome = ("error", type(exc).__name__, str(exc) or repr(exc))
+                        err = finish(k, outcome)
+                        if err is not None and failure is None:
+                            failure = err
+                abort = False
+            finally:
+                backend.close(abort=abort)
+    if failure is not None:
+        raise failure
+    if cancelled and len(records) < len(slots_of):
+        raise SweepCancelled(state["done"], total, state["computed"], n_from_cache)
+
+    return _assemble(points, keys, records, cached_keys, orders, executor, time.perf_counter() - t_start)
+
+
+def _assemble(points, keys, records, cached_keys, orders, executor, wall):
+    from dampersim.analysis.metrics import magnification_ratio
+    from dampersim.units import rad_s_to_rpm
+
+    orders_arr = np.asarray(orders, dtype=float)
+    n_o = orders_arr.size
+    cols = {c: [] for c in TABLE_COLUMNS}
+    prow = {c: [] for c in ("point", "speed_rpm", "speed_rad_s", "mean_torque_nm",
+                            "mean_input_torque_nm", "mean_output_torque_nm", "wall_time_s",
+                            "compute_time_s", "from_cache")}
+    spectra_in, spectra_out = [], []
+    freq = None
+    for i, (p, k) in enumerate(zip(points, keys)):
+        rec = records[k]
+        a_in, a_out = rec.amplitudes(orders_arr)
+        largest = np.nanmax(a_in) if np.isfinite(a_in).any() else 0.0
+        mr = magnification_ratio(a_in, a_out, min_input=max(MIN_INPUT_REL * largest, 1e-12))
+        rpm = round(float(rad_s_to_rpm(p.speed)), 9)
+        cols["point"].extend([i] * n_o)
+        cols["speed_rpm"].extend([rpm] * n_o)
+        cols["speed_rad_s"].extend([p.speed] * n_o)
+        cols["mean_torque_nm"].extend([p.mean_torque] * n_o)
+        cols["order"].extend(orders_arr)
+        cols["frequency_hz"].extend(orders_arr * p.speed / (2.0 * np.pi))
+        cols["input_amplitude_nm"].extend(a_in)
+        cols["output_amplitude_nm"].extend(a_out)
+        cols["magnification"].extend(mr)
+        prow["point"].append(i)
+        prow["speed_rpm"].append(rpm)
+        prow["speed_rad_s"].append(p.speed)
+        prow["mean_torque_nm"].append(p.mean_torque)
+        prow["mean_input_torque_nm"].append(rec.mean_input_torque)
+        prow["mean_output_torque_nm"].append(rec.mean_output_torque)
+        prow["wall_time_s"].append(rec.wall_time)
+        prow["compute_time_s"].append(rec.compute_time)
+        prow["from_cache"].append(k in cached_keys)
+        f = rec.frequency_hz
+        if freq is None or f.size < freq.size:
+            freq = f
+        spectra_in.append(rec.input_spectrum)
+        spectra_out.append(rec.output_spectrum)
+    # points of one sweep share sample rate and window, hence bins; trim defensively
+    n_f = freq.size
+    table = pd.DataFrame(cols)
+    table["point"] = table["point"].astype("int64")
+    for c in TABLE_COLUMNS[1:]:
+        table[c] = table[c].astype("float64")
+    return SweepResult(
+        table=table,
+        points=pd.DataFrame(prow),
+        test_points=tuple(points),
+        frequency_hz=freq,
+        input_spectra=np.vstack([s[:n_f] for s in spectra_in]),
+        output_spectra=np.vstack([s[:n_f] for s in spectra_out]),
+        wall_time=wall,
+        computed=sum(k not in cached_keys for k in keys),
+        from_cache=sum(k in cached_keys for k in keys),
+        executor=executor,
+        keys=tuple(keys),
+    )
+
+
+__all__ = [
+    "run_sweep",
+    "SweepResult",
+    "SweepCancelled",
+    "SweepPointFailed",
+    "write_parquet_atomic",
+    "EXECUTORS",
+    "SCHEDULER_ENV",
+    "DEFAULT_ORDERS",
+]
