@@ -510,20 +510,6 @@ def _stack_pair(q, v, J, da, db, delta, stats):
 
 
 @njit(cache=True)
-def stacking_needed(q, P, SF, SI, X):
-    """True if any segment is shorter than its block arc."""
-    spring_nodes(q, P, SF, SI, X)
-    for s in range(SF.shape[0]):
-        n = SI[s, I_N]
-        base = SI[s, I_NODE]
-        block = SF[s, F_BLOCK]
-        for j in range(n):
-            if X[base + j + 1] - X[base + j] < block:
-                return True
-    return False
-
-
-@njit(cache=True)
 def elastic_energy(q, P, SF, SI, RIG, X):
     """Elastic energy [J] of springs (all count copies), hardstop contacts and rig shafts."""
     spring_nodes(q, P, SF, SI, X)
