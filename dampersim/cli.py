@@ -99,17 +99,31 @@ def _write_parquet(frame, path):
 
 
 def cmd_modes(args) -> int:
+    from dampersim.analysis.modal import campbell, modal_analysis
     from dampersim.solver.linear import linearise
 
     system = _system_from_args(args)
-    lm = linearise(system, motor=args.output_motor or "free")
+    motor = args.output_motor or "free"
+    lm = linearise(system, motor=motor)
+    modal = modal_analysis(system, motor=motor)
     d = lm.to_dict()
+    d["mode_shapes"] = modal.shapes.tolist()  # columns = modes, ascending frequency
+    # the three DOFs holding most of each mode's kinetic energy: [[name, share], ...]
+    d["dominant_dofs"] = [[[n, float(w)] for n, w in modal.dominant_dofs(i, 3)] for i in range(len(modal.frequencies_hz))]
+    if args.out:
+        from dampersim import plotting
+
+        fig = plotting.campbell_figure(campbell(modal), max_frequency_hz=400.0)
+        d["campbell_html"] = plotting.write_html(fig, args.out)
     if args.json:
         print(json.dumps(d))
     else:
         print(f"{system.name}: {len(d['dof_names'])} DOFs, output motor {lm.motor}")
         for i, f in enumerate(d["natural_frequencies_hz"][:12]):
-            print(f"mode {i + 1:2d}: {f:10.2f} Hz")
+            parts = ", ".join(f"{n} {100 * w:.0f} %" for n, w in d["dominant_dofs"][i])
+            print(f"mode {i + 1:2d}: {f:10.2f} Hz   {parts}")
+        if args.out:
+            print(f"Campbell diagram: {d['campbell_html']}")
     return 0
 
 
@@ -145,8 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
     common(s, ("pi", "held"))
     s.set_defaults(func=cmd_simulate)
 
-    m = sub.add_parser("modes", help="linearised model (M, C, K) and natural frequencies")
+    m = sub.add_parser("modes", help="linearised model (M, C, K), natural frequencies, mode shapes")
     common(m, ("free", "held"))
+    m.add_argument("--out", metavar="FILE.html", help="write a Campbell diagram (orders 1-8 vs the modes)")
     m.set_defaults(func=cmd_modes)
 
     pa = sub.add_parser("params", help="show or validate a parameter set")

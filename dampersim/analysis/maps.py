@@ -223,3 +223,36 @@ __all__ = [
     "torque_curve_overlay",
     "predict_along_curve",
 ]
+
+
+def zone_summary(table, knee_nm: float, orders=None, spike_hz: float = 20.0, low_hz: float = 30.0, mid_hz: float = 80.0) -> dict:
+    """MR statistics in the zones the thesis describes ([thesis] §7.2, model-spec §10),
+    from the test points themselves (no interpolation).
+
+    Zones: ``spike`` f < spike_hz; ``low`` f < low_hz; ``below_knee_high`` mean torque <
+    knee_nm and f > mid_hz (both sets active: the trough); ``above_knee_high`` mean torque
+    > knee_nm and f > mid_hz (inner set only). Each zone reports the number of points,
+    median, maximum and the share of points with MR > 1. ``knee_nm`` [N m]; frequencies [Hz].
+    """
+    t = table.dropna(subset=["magnification"])
+    if orders is not None:
+        t = t[t["order"].isin([float(k) for k in orders])]
+    f = t["frequency_hz"].to_numpy()
+    m = t["mean_torque_nm"].to_numpy()
+    mr = t["magnification"].to_numpy()
+    zones = {
+        "spike": f < spike_hz,
+        "low": f < low_hz,
+        "below_knee_high": (m < knee_nm) & (f > mid_hz),
+        "above_knee_high": (m > knee_nm) & (f > mid_hz),
+    }
+    out = {}
+    for name, sel in zones.items():
+        vals = mr[sel]
+        out[name] = {
+            "points": int(vals.size),
+            "median_mr": float(np.median(vals)) if vals.size else None,
+            "max_mr": float(np.max(vals)) if vals.size else None,
+            "share_above_one": float(np.mean(vals > 1.0)) if vals.size else None,
+        }
+    return out

@@ -170,8 +170,9 @@ def _write_figures(result, out_dir):
     return paths, notes
 
 
-def cmd_sweep(args) -> int:
-    """Run a sweep, write ``OUT/sweep.parquet`` (and figures), print a summary."""
+def _cli_sweep(args):
+    """Parse the grid options, run the sweep with a progress bar and Ctrl-C cancellation,
+    write OUT/sweep.parquet. Returns (system, result, out_dir, table_path)."""
     from dampersim.excitation import parse_orders
     from dampersim.parameters import load_parameters, parse_set_options
     from dampersim.sweeps.executor import run_sweep
@@ -216,6 +217,12 @@ def cmd_sweep(args) -> int:
         bar.close()
 
     table_path = result.to_parquet(os.path.join(out_dir, TABLE_NAME))
+    return system, result, out_dir, table_path
+
+
+def cmd_sweep(args) -> int:
+    """Run a sweep, write ``OUT/sweep.parquet`` (and figures), print a summary."""
+    system, result, out_dir, table_path = _cli_sweep(args)
     figures, notes = _write_figures(result, out_dir)
     for note in notes:
         print(note, file=sys.stderr)
@@ -237,6 +244,61 @@ def cmd_sweep(args) -> int:
         print(f"  table:      {table_path}")
         for path in figures:
             print(f"  figure:     {path}")
+    return 0
+
+
+def cmd_map(args) -> int:
+    """Run a mapping grid (speeds x mean torques), build the magnification map over
+    (excitation frequency, mean torque) with the engine torque curve, write the table,
+    the map figure and a zone summary ([thesis] §6.3.1, §7.2)."""
+    from dampersim.analysis.maps import magnification_map, torque_curve_overlay, zone_summary
+    from dampersim.excitation import default_torque_curve, parse_orders
+    from dampersim.sweeps.grid import parse_values
+
+    lo_hi = parse_values(args.freq_range.replace(":", ","), option="--freq-range", unit="Hz")
+    if len(lo_hi) != 2 or not (0 < lo_hi[0] < lo_hi[1]):
+        raise InputError(f"--freq-range {args.freq_range!r}: accepted is LOW:HIGH in Hz with 0 < LOW < HIGH")
+    system, result, out_dir, table_path = _cli_sweep(args)
+    excited = [k for k, a, _ in parse_orders(args.orders) if a > 0]
+    mmap = magnification_map(result.table, frequency_range_hz=tuple(lo_hi), orders=excited,
+                             frequency_step_hz=args.freq_step, torque_step_nm=args.torque_step)
+    knee = system.outer.count * system.outer.spring.stiffness * system.outer.hardstop_positive
+    zones = zone_summary(result.table, knee_nm=knee, orders=excited)
+    figures = []
+    try:
+        from dampersim import plotting
+
+        curve = default_torque_curve()
+        overlays = [torque_curve_overlay(curve, order=k) for k in (2.0, 4.0) if k in excited]
+        fig = plotting.magnification_map_figure(mmap, overlays=overlays, show_points=True)
+        figures.append(plotting.write_html(fig, os.path.join(out_dir, "magnification_map.html")))
+    except Exception as exc:  # the figure is a by-product: never lose the table for it
+        print(f"figure skipped: {type(exc).__name__}: {exc}", file=sys.stderr)
+    summary = {
+        "points": result.n_points,
+        "computed": result.computed,
+        "from_cache": result.from_cache,
+        "wall_time_s": result.wall_time,
+        "table": table_path,
+        "figures": figures,
+        "knee_nm": knee,
+        "zones": zones,
+        "share_of_map_above_one": float(np.mean(mmap.above_one[np.isfinite(mmap.magnification)]))
+        if np.isfinite(mmap.magnification).any() else None,
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"{system.name}: {result.n_points} test points in {result.wall_time:.2f} s "
+              f"(computed {result.computed}, from cache {result.from_cache})")
+        print(f"  outer knee {knee:.0f} N m; MR by zone (median / max / share > 1):")
+        for name, z in zones.items():
+            if z["points"]:
+                print(f"  {name:>16}: {z['median_mr']:.3f} / {z['max_mr']:.3f} / "
+                      f"{100 * z['share_above_one']:.0f} % of {z['points']} points")
+        print(f"  table:  {table_path}")
+        for path in figures:
+            print(f"  figure: {path}")
     return 0
 
 
@@ -400,9 +462,37 @@ def cmd_orders(args) -> int:
 
 
 # --------------------------------------------------------------------------- parsers
-def add_parsers(subparsers) -> None:
-    """Register the ``sweep`` and ``orders`` commands on an argparse subparsers object."""
+def _grid_options(p, speeds, torque, orders, out) -> None:
+    """Options shared by ``sweep`` and ``map`` (grid, parameters, execution, output)."""
     from dampersim.sweeps.executor import EXECUTORS, SCHEDULER_ENV
+
+    if speeds is None:
+        p.add_argument("--speeds", required=True, metavar="RPM",
+                       help='speeds [rpm]: START:STOP:STEP (inclusive), a list or a value, e.g. "900:2800:10"')
+    else:
+        p.add_argument("--speeds", default=speeds, metavar="RPM",
+                       help=f'speeds [rpm]: START:STOP:STEP (inclusive), a list or a value (default {speeds})')
+    p.add_argument("--torque", default=torque, metavar="NM",
+                   help=f"mean torque(s) [N m]: a value, a list or START:STOP:STEP (default {torque})")
+    p.add_argument("--orders", default=orders, help=f'ORDER:AMPLITUDE_NM[@PHASE_DEG],... (default "{orders}")')
+    p.add_argument("--params", metavar="FILE.toml", help="parameter set (default: built-in damper)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter by dotted name")
+    p.add_argument("--executor", choices=EXECUTORS, default=None,
+                   help="where to compute (default: dask if a scheduler is given, else processes)")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help=f"Dask scheduler address, e.g. tcp://host:8786 (default: ${SCHEDULER_ENV})")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per point [s]")
+    p.add_argument("--window", type=float, default=None, metavar="S",
+                   help="analysis window at the end of each record [s] (default 1.25, §3.4)")
+    p.add_argument("--out", default=out, metavar="DIR", help=f"output folder (default {out})")
+    p.add_argument("--no-cache", action="store_true", help="neither read nor write the result cache")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
+
+
+def add_parsers(subparsers) -> None:
+    """Register the ``sweep``, ``map`` and ``orders`` commands on an argparse subparsers object."""
 
     s = subparsers.add_parser(
         "sweep",
@@ -414,26 +504,23 @@ def add_parsers(subparsers) -> None:
             "Ctrl-C cancels cleanly: finished points stay cached."
         ),
     )
-    s.add_argument("--speeds", required=True, metavar="RPM",
-                   help='speeds [rpm]: START:STOP:STEP (inclusive), a list or a value, e.g. "900:2800:10"')
-    s.add_argument("--torque", default="200", metavar="NM",
-                   help='mean torque(s) [N m]: a value, a list or START:STOP:STEP (default 200)')
-    s.add_argument("--orders", default="2:300", help='ORDER:AMPLITUDE_NM[@PHASE_DEG],... e.g. "2:300,4:100"')
-    s.add_argument("--params", metavar="FILE.toml", help="parameter set (default: built-in damper)")
-    s.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter by dotted name")
-    s.add_argument("--executor", choices=EXECUTORS, default=None,
-                   help="where to compute (default: dask if a scheduler is given, else processes)")
-    s.add_argument("--workers", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
-    s.add_argument("--scheduler", default=None, metavar="ADDR",
-                   help=f"Dask scheduler address, e.g. tcp://host:8786 (default: ${SCHEDULER_ENV})")
-    s.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per point [s]")
-    s.add_argument("--window", type=float, default=None, metavar="S",
-                   help="analysis window at the end of each record [s] (default 1.25, §3.4)")
-    s.add_argument("--out", default="out/sweep", metavar="DIR", help="output folder (default out/sweep)")
-    s.add_argument("--no-cache", action="store_true", help="neither read nor write the result cache")
-    s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    s.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
+    _grid_options(s, speeds=None, torque="200", orders="2:300", out="out/sweep")
     s.set_defaults(func=cmd_sweep)
+
+    m = subparsers.add_parser(
+        "map",
+        help="magnification map over excitation frequency x mean torque from a mapping grid",
+        description=(
+            "Simulate a mapping grid (the thesis maps 900-2000 rpm x 50-500 N m, §3.3.2), "
+            "interpolate the magnification ratio of the excited orders over (frequency, mean "
+            "torque) and overlay the engine torque curve (§6.3.1, §7.2)."
+        ),
+    )
+    _grid_options(m, speeds="900:2000:100", torque="50:500:50", orders="1:60,2:300,4:100,6:40", out="out/map")
+    m.add_argument("--freq-range", default="8:300", metavar="LOW:HIGH", help="map frequency range [Hz] (default 8:300)")
+    m.add_argument("--freq-step", type=float, default=2.0, metavar="HZ", help="map grid step [Hz]")
+    m.add_argument("--torque-step", type=float, default=10.0, metavar="NM", help="map grid step [N m]")
+    m.set_defaults(func=cmd_map)
 
     o = subparsers.add_parser(
         "orders",
@@ -455,4 +542,4 @@ def add_parsers(subparsers) -> None:
     o.set_defaults(func=cmd_orders)
 
 
-__all__ = ["add_parsers", "cmd_sweep", "cmd_orders", "order_amplitudes_of_file", "ProgressBar"]
+__all__ = ["add_parsers", "cmd_sweep", "cmd_map", "cmd_orders", "order_amplitudes_of_file", "ProgressBar"]

@@ -78,3 +78,26 @@ def test_params_show_validate_round_trip(tmp_path, capsys):
     f.write_text(text.replace("primary = 0.25", "primary = -1.0"))
     assert main(["params", "validate", str(f)]) == 2
     assert "inertias.primary" in capsys.readouterr().err
+
+
+def test_modes_shapes_and_campbell_html(tmp_path, capsys):
+    out = tmp_path / "campbell.html"
+    assert main(["modes", "--json", "--out", str(out)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    n = len(d["dof_names"])
+    assert len(d["mode_shapes"]) == n and len(d["mode_shapes"][0]) == n
+    assert d["dominant_dofs"][1][0][0] == "primary"  # the first elastic mode: J_pri on the springs
+    assert out.exists() and out.stat().st_size > 10_000
+
+
+def test_map_command_small_grid(tmp_path, capsys):
+    args = ["map", "--speeds", "1000,1600", "--torque", "100,400", "--orders", "2:300,4:100",
+            "--duration", "1.6", "--window", "0.8", "--executor", "serial", "--no-progress",
+            "--out", str(tmp_path / "map"), "--json"]
+    assert main(args) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["points"] == 4 and d["computed"] + d["from_cache"] == 4
+    assert set(d["zones"]) == {"spike", "low", "below_knee_high", "above_knee_high"}
+    # above the knee only the inner set works: attenuation is poorer than below it
+    assert d["zones"]["above_knee_high"]["median_mr"] > d["zones"]["below_knee_high"]["median_mr"]
+    assert (tmp_path / "map" / "sweep.parquet").exists()
