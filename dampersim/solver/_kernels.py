@@ -390,71 +390,120 @@ def _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6):
 
 
 @njit(cache=True)
-def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt):
+def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W):
     """Friction impulses for one step, applied to v in place; returns dissipation [J].
 
-    Each spring mass (and each nested pair's two masses together) is solved implicitly
-    in its slip speeds with the housing bodies' speeds taken as known, then the
-    reactions are applied to the housings (Eq. 25-28). The dissipation is the work of
-    the friction torques on the end-of-step slips, the speeds that move the positions;
-    measured so, the energy balance closes to O(dt^2) per unit time instead of O(dt).
+    The linearised friction of every contact is solved implicitly together with the two
+    housing bodies it loads (J_sec, J_ter): each spring mass (each nested pair's two
+    masses together) is eliminated in terms of the housings' end-of-step speeds, the
+    housings' 2x2 system is solved, and the masses are recovered (Eq. 25-28). Solving
+    the housings with the masses, rather than after them, removes an ordering bias
+    that grows with the springs' share of the housings' inertia. The dissipation is the
+    work of the friction torques on the end-of-step slips, the speeds that move the
+    positions; measured so, the energy balance closes. W: scratch of length
+    2 n_contacts + 2 n_singles + 6 n_pairs.
     """
     g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
-    diss = 0.0
-    for k in range(SG.shape[0]):
+    nc = CI.shape[0]
+    ns = SG.shape[0]
+    ws = 2 * nc  # per single: alpha, beta (v_m = alpha + beta v_b)
+    wp = ws + 2 * ns  # per pair: vo = o0 + o1 v1 + o2 v2, vi = i0 + i1 v1 + i2 v2
+    # housing system A [v1; v2] = R for J_sec (1) and J_ter (2)
+    a11 = J[1] / dt
+    a22 = J[2] / dt
+    a12 = 0.0
+    a21 = 0.0
+    r1 = a11 * v[1]
+    r2 = a22 * v[2]
+    for k in range(ns):
         m = SG[k, 0]
         c = SG[k, 1]
         b = CI[c, 1]
         p, q, ss = _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-        jd = J[m] / dt
-        vm = (jd * v[m] - p + q * v[b]) / (jd + q)
-        t = p + q * (vm - v[b])
-        v[m] = vm
-        v[b] += dt * t / J[b]
-        diss += dt * t * (v[m] - v[b])
+        W[2 * c] = p
+        W[2 * c + 1] = q
+        jm = J[m] / dt
+        al = (jm * v[m] - p) / (jm + q)
+        be = q / (jm + q)
+        W[ws + 2 * k] = al
+        W[ws + 2 * k + 1] = be
+        # torque on the housing: p + q (alpha - (1 - beta) v_b)
+        if b == 1:
+            a11 += q * (1.0 - be)
+            r1 += p + q * al
+        else:
+            a22 += q * (1.0 - be)
+            r2 += p + q * al
     for k in range(PG.shape[0]):
         mo = PG[k, 0]
         mi = PG[k, 1]
         c1 = PG[k, 2]
         c2 = PG[k, 3]
         c3 = PG[k, 4]
-        p1 = q1 = s1 = p2 = q2 = s2 = p3 = q3 = s3 = 0.0
-        b1 = 1
-        b2 = 2
+        p1 = q1 = p2 = q2 = p3 = q3 = 0.0
         if c1 >= 0:
             p1, q1, s1 = _contact_law(c1, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-            b1 = CI[c1, 1]
+            W[2 * c1] = p1
+            W[2 * c1 + 1] = q1
         if c2 >= 0:
             p2, q2, s2 = _contact_law(c2, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-            b2 = CI[c2, 1]
+            W[2 * c2] = p2
+            W[2 * c2 + 1] = q2
         if c3 >= 0:
             p3, q3, s3 = _contact_law(c3, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
+            W[2 * c3] = p3
+            W[2 * c3 + 1] = q3
         jo = J[mo] / dt
-        a11 = jo + q1 + q2 + q3
-        r1 = jo * v[mo] - p1 + q1 * v[b1] - p2 + q2 * v[b2] + p3
+        b11 = jo + q1 + q2 + q3
+        r0 = jo * v[mo] - p1 - p2 + p3
         if mi >= 0:
             ji = J[mi] / dt
-            a22 = ji + q3
-            r2 = ji * v[mi] - p3
-            det = a11 * a22 - q3 * q3
-            vo = (r1 * a22 + q3 * r2) / det
-            vi = (a11 * r2 + q3 * r1) / det
-            v[mi] = vi
+            b22 = ji + q3
+            ri = ji * v[mi] - p3
+            det = b11 * b22 - q3 * q3
+            o0 = (b22 * r0 + q3 * ri) / det
+            o1 = b22 * q1 / det
+            o2 = b22 * q2 / det
+            i0 = (q3 * r0 + b11 * ri) / det
+            i1 = q3 * q1 / det
+            i2 = q3 * q2 / det
         else:
-            vo = r1 / a11
-            vi = 0.0
-        v[mo] = vo
-        t1 = p1 + q1 * (vo - v[b1])
-        t2 = p2 + q2 * (vo - v[b2])
-        t3 = p3 + q3 * (vi - vo)
-        if c1 >= 0:
-            v[b1] += dt * t1 / J[b1]
-            diss += dt * t1 * (vo - v[b1])
-        if c2 >= 0:
-            v[b2] += dt * t2 / J[b2]
-            diss += dt * t2 * (vo - v[b2])
-        if c3 >= 0:
-            diss += dt * t3 * (vi - vo)
+            o0 = r0 / b11
+            o1 = q1 / b11
+            o2 = q2 / b11
+            i0 = i1 = i2 = 0.0
+        base = wp + 6 * k
+        W[base] = o0
+        W[base + 1] = o1
+        W[base + 2] = o2
+        W[base + 3] = i0
+        W[base + 4] = i1
+        W[base + 5] = i2
+        # t1 = p1 + q1 (vo - v1) acts on J_sec, t2 = p2 + q2 (vo - v2) on J_ter
+        a11 += q1 * (1.0 - o1)
+        a12 -= q1 * o2
+        r1 += p1 + q1 * o0
+        a21 -= q2 * o1
+        a22 += q2 * (1.0 - o2)
+        r2 += p2 + q2 * o0
+    det = a11 * a22 - a12 * a21
+    u1 = (r1 * a22 - a12 * r2) / det
+    u2 = (a11 * r2 - a21 * r1) / det
+    v[1] = u1
+    v[2] = u2
+    for k in range(ns):
+        m = SG[k, 0]
+        b = CI[SG[k, 1], 1]
+        v[m] = W[ws + 2 * k] + W[ws + 2 * k + 1] * v[b]
+    for k in range(PG.shape[0]):
+        base = wp + 6 * k
+        v[PG[k, 0]] = W[base] + W[base + 1] * u1 + W[base + 2] * u2
+        if PG[k, 1] >= 0:
+            v[PG[k, 1]] = W[base + 3] + W[base + 4] * u1 + W[base + 5] * u2
+    diss = 0.0
+    for c in range(nc):
+        s = v[CI[c, 0]] - v[CI[c, 1]]
+        diss += dt * (W[2 * c] + W[2 * c + 1] * s) * s
     return diss
 
 
@@ -626,6 +675,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     vx = np.zeros(ndof)
     vprev = v.copy()
     flags = np.zeros(1)
+    FW = np.zeros(2 * CI.shape[0] + 2 * SG.shape[0] + 6 * PG.shape[0])
     for step in range(nsteps):
         tin = torque[step]
         record = (step % rec_every == 0) and irec < rec.shape[0]
@@ -682,7 +732,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
         e_motor += dt * FE[motor] * (om0 + 0.5 * (v0[motor] + v[motor]))
         # 2) friction: each spring mass (the two masses of a nested pair together) is
         #    solved implicitly in its slip speeds, the housing bodies' speeds known
-        e_fric += friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt)
+        e_fric += friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW)
         # 3) PI state and positions
         z -= dt * v[motor]
         for i in range(ndof):
