@@ -175,6 +175,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_sweeps(sub)
     add_analysis(sub)
+    from dampersim.studies.commands import add_parsers as add_studies
+
+    add_studies(sub)
+    from dampersim.discrepancy.commands import add_parsers as add_discrepancy
+    add_discrepancy(sub)
     return p
 
 

@@ -12,6 +12,17 @@ from dampersim.solver.layout import Layout
 ANALYSIS_WINDOW = 1.25  # s, [thesis] §3.4 and §6.2.1
 
 
+def _transducer(tout, system, rec_dt):
+    """Output torque as the transducer reports it: unchanged, or with effect
+    transducer_bandwidth a causal first-order low pass at its cutoff [Hz]."""
+    tb = getattr(getattr(system, "effects", None), "transducer_bandwidth", None)
+    if tb is None or not tb.enabled or len(tout) < 2:
+        return tout
+    from dampersim.analysis.hysteresis import lowpass_first_order
+
+    return lowpass_first_order(tout, 1.0 / rec_dt, tb.cutoff)
+
+
 @dataclass(frozen=True, eq=False)
 class SimulationResult:
     """Time series of a simulation (SI units).
@@ -67,7 +78,7 @@ class SimulationResult:
         return cls(
             t=c[kern.R_T].copy(),
             input_torque=c[kern.R_TIN].copy(),
-            output_torque=c[kern.R_TOUT].copy(),
+            output_torque=_transducer(c[kern.R_TOUT].copy(), system, rec_dt),
             speed_primary=c[kern.R_W_PRI].copy(),
             speed_secondary=c[kern.R_W_SEC].copy(),
             speed_tertiary=c[kern.R_W_TER].copy(),

@@ -33,6 +33,15 @@ _NESTED = {
     (m.Friction, "outer"): m.SpringFriction,
     (m.Friction, "pair_outer"): m.SpringFriction,
     (m.Friction, "pair_inner"): m.SpringFriction,
+    (m.DamperSystem, "effects"): m.Effects,
+    (m.Effects, "clutch_slip"): m.ClutchSlip,
+    (m.Effects, "output_backlash"): m.OutputBacklash,
+    (m.Effects, "inner_short_springs"): m.InnerShortSprings,
+    (m.Effects, "turbine_drag"): m.TurbineDrag,
+    (m.Effects, "pendulum_absorber"): m.PendulumAbsorber,
+    (m.Effects, "nested_radial_transfer"): m.NestedRadialTransfer,
+    (m.Effects, "spring_preload"): m.SpringPreload,
+    (m.Effects, "transducer_bandwidth"): m.TransducerBandwidth,
 }
 
 

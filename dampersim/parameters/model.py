@@ -149,12 +149,101 @@ class OutputMotor:
 class Solver:
     """Numerical settings (not hardware)."""
 
-    time_step: float = param("s", "fixed integration step", 1.0e-8, 1.0e-3, default=1.5e-5)
+    time_step: float = param("s", "fixed integration step", 1.0e-8, 1.0e-3, default=1.0 / 60000.0)
     outer_segments: int = param("-", "segments per outer spring ([thesis] §6.2.2: 18)", 4, 200, default=18, kind=int)
     inner_segments: int = param("-", "segments per nested-pair spring ([thesis] §6.2.2: 8)", 4, 200, default=8, kind=int)
     duration: float = param("s", "simulated time", 0.01, 600.0, default=2.6)
     output_sample_rate: float = param("Hz", "sample rate of the stored time series", 100.0, 1.0e6, default=10000.0)
     segment_sample_rate: float = param("Hz", "sample rate of the stored per-segment states", 1.0, 1.0e5, default=1000.0)
+
+
+# --- candidate effects of the discrepancy workflow (all off by default) ----------------
+# Physical cause and expected signature of each: dampersim.discrepancy.effects.
+
+
+@dataclass(frozen=True)
+class ClutchSlip:
+    """Lock-up clutch of finite capacity between the input and J_pri."""
+
+    enabled: bool = param("-", "lock-up clutch may slip (false: rigidly closed)", default=False, kind=bool)
+    capacity: float = param("N m", "friction torque the closed clutch transmits before it slips", 10.0, 1.0e4, default=500.0)
+    slip_speed: float = param("rad/s", "slip speed over which the clutch friction builds up", 1.0e-4, 10.0, default=0.02)
+    viscous: float = param("N m s/rad", "oil-film drag of the slipping clutch", 0.0, 1.0e4, default=20.0)
+    drive_inertia_fraction: float = param("-", "share of J_pri on the engine side of the clutch (cover, pump)", 0.05, 0.95, default=0.6)
+
+
+@dataclass(frozen=True)
+class OutputBacklash:
+    """Free play in the transmission output (the gearbox shaft after J_ter)."""
+
+    enabled: bool = param("-", "free play in the first rig shaft", default=False, kind=bool)
+    free_play: float = param("rad", "total angular free play of the shaft", 0.0, 0.5, default=0.03)
+
+
+@dataclass(frozen=True)
+class InnerShortSprings:
+    """Shorter inner-of-pair springs in some nested pairs: a third stiffness stage."""
+
+    enabled: bool = param("-", "some inner-of-pair springs are shorter than the slot", default=False, kind=bool)
+    count: int = param("-", "number of pairs with a short inner spring", 1, 12, default=2, kind=int)
+    stiffness: float = param("N m/rad", "rate of one short spring about the damper axis", 0.0, 1.0e5, default=240.0)
+    clearance: float = param("rad", "inner-set windup at which a short spring starts to carry torque", 0.0, 1.0, default=0.1)
+
+
+@dataclass(frozen=True)
+class TurbineDrag:
+    """Hydrodynamic drag on J_sec (turbine) against the housing (J_pri)."""
+
+    enabled: bool = param("-", "hydrodynamic drag between turbine and housing", default=False, kind=bool)
+    coefficient: float = param("N m s/rad", "drag torque per unit slip speed", 0.0, 1.0e3, default=3.0)
+
+
+@dataclass(frozen=True)
+class PendulumAbsorber:
+    """Centrifugal pendulum absorber on J_sec tuned to an engine order (linearised)."""
+
+    enabled: bool = param("-", "pendulum absorber fitted on J_sec", default=False, kind=bool)
+    order: float = param("-", "engine order the pendulums are tuned to", 0.5, 12.0, default=2.0)
+    inertia: float = param("kg m^2", "effective inertia of the pendulum masses", 0.0, 1.0, lo_open=True, default=0.001)
+    damping: float = param("N m s/rad", "damping of the pendulum motion relative to J_sec", 0.0, 100.0, default=0.02)
+
+
+@dataclass(frozen=True)
+class NestedRadialTransfer:
+    """The inner spring of each nested pair presses radially on its outer spring."""
+
+    enabled: bool = param("-", "inner spring's radial force loads the outer spring of the pair", default=False, kind=bool)
+    fraction: float = param("-", "share of the inner spring's normal force passed on", 0.0, 1.0, default=1.0)
+
+
+@dataclass(frozen=True)
+class SpringPreload:
+    """Radial preload on every arc spring mass (e.g. pre-curved springs)."""
+
+    enabled: bool = param("-", "extra radial preload on the arc springs", default=False, kind=bool)
+    force: float = param("N", "radial preload per segment mass (one spring)", 0.0, 1.0e4, default=15.0)
+
+
+@dataclass(frozen=True)
+class TransducerBandwidth:
+    """First-order low pass of the output torque transducer chain."""
+
+    enabled: bool = param("-", "output torque passes a first-order low pass", default=False, kind=bool)
+    cutoff: float = param("Hz", "-3 dB frequency of the low pass", 1.0, 1.0e5, default=150.0)
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Optional physical effects beyond the thesis's model (the discrepancy library)."""
+
+    clutch_slip: ClutchSlip = field(default_factory=ClutchSlip, metadata={"doc": "lock-up clutch slip"})
+    output_backlash: OutputBacklash = field(default_factory=OutputBacklash, metadata={"doc": "output free play"})
+    inner_short_springs: InnerShortSprings = field(default_factory=InnerShortSprings, metadata={"doc": "third stiffness stage"})
+    turbine_drag: TurbineDrag = field(default_factory=TurbineDrag, metadata={"doc": "turbine drag"})
+    pendulum_absorber: PendulumAbsorber = field(default_factory=PendulumAbsorber, metadata={"doc": "pendulum absorber"})
+    nested_radial_transfer: NestedRadialTransfer = field(default_factory=NestedRadialTransfer, metadata={"doc": "nested radial load"})
+    spring_preload: SpringPreload = field(default_factory=SpringPreload, metadata={"doc": "radial spring preload"})
+    transducer_bandwidth: TransducerBandwidth = field(default_factory=TransducerBandwidth, metadata={"doc": "transducer low pass"})
 
 
 @dataclass(frozen=True)
@@ -171,3 +260,4 @@ class DamperSystem:
     rig: Rig = field(default=None, metadata={"doc": "output chain of the test rig"})
     motor: OutputMotor = field(default_factory=OutputMotor, metadata={"doc": "output motor control"})
     solver: Solver = field(default_factory=Solver, metadata={"doc": "numerical settings"})
+    effects: Effects = field(default_factory=Effects, metadata={"doc": "optional effects (all off by default)"})

@@ -134,6 +134,12 @@ def validate(system: m.DamperSystem, check_time_step: bool = True) -> m.DamperSy
         raise ParameterError("rig.output_transducer", system.rig.output_transducer, f"one of {names[:-1]} (not the motor)")
     if system.motor.mode not in ("pi", "held"):
         raise ParameterError("motor.mode", system.motor.mode, "'pi' or 'held'")
+    tb = system.effects.transducer_bandwidth
+    if tb.enabled and tb.cutoff >= 0.5 * system.solver.output_sample_rate:
+        raise ParameterError(
+            "effects.transducer_bandwidth.cutoff", tb.cutoff,
+            f"a cutoff below half the output sample rate ({0.5 * system.solver.output_sample_rate:g} Hz)",
+        )
     if check_time_step:
         from dampersim.solver.linear import max_stable_time_step
 

@@ -63,6 +63,22 @@ from dampersim.solver.layout import (
     P_TRANS,
     P_VMAX,
 )
+from dampersim.solver.layout import (  # optional effects (dampersim.discrepancy.effects)
+    P_BL_HALF,
+    P_CL_CAP,
+    P_CL_ON,
+    P_CL_VISC,
+    P_CL_WS,
+    P_INPUT,
+    P_MOTOR,
+    P_NRT,
+    P_PA_C,
+    P_PA_DOF,
+    P_PA_K,
+    P_SS_GAP,
+    P_SS_K,
+    P_TD_C,
+)
 
 # record columns (one row per stored sample)
 R_T = 0
@@ -276,6 +292,8 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
                     sb1 -= tb
             tprev = t
             fdprev = fd
+    if P[P_NRT] > 0.0:
+        nested_radial_transfer(P, SI, FN)
     # hardstops: stiff, damped, one-sided contact on the windup of each set
     hs0 = 0.0
     hs1 = 0.0
@@ -312,6 +330,7 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
                     hs0 = tt
                 else:
                     hs1 = tt
+    energy += effect_forces(q, v, P, FC, FD)
     # rig chain (Eq. 34-35)
     nrig = int(P[P_NRIG])
     rig0 = int(P[P_RIG0])
@@ -321,8 +340,12 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
         d = rig0 + e
         prev = 2 if e == 0 else d - 1
         dq = q[prev] - q[d]
-        ks = RIG[e, 0] * dq
         ds = RIG[e, 1] * (v[prev] - v[d])
+        if e == 0 and P[P_BL_HALF] > 0.0:
+            dq = dead_zone(dq, P[P_BL_HALF])
+            if dq == 0.0:  # inside the free play: no shaft torque, no damping
+                ds = 0.0
+        ks = RIG[e, 0] * dq
         FC[prev] -= ks
         FC[d] += ks
         FD[prev] -= ds
@@ -331,8 +354,8 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
         FD[d] -= RIG[e, 2] * (om0 + v[d])
         if d == trans:
             tout = ks + ds
-    motor = rig0 + nrig - 1
-    FE[0] = tin
+    motor = int(P[P_MOTOR])
+    FE[int(P[P_INPUT])] = tin
     tm = 0.0
     if P[P_HELD] > 0.0:
         tm = -(FC[motor] + FD[motor])
@@ -348,7 +371,7 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
         rec[R_W_MOTOR] = om0 + v[motor]
         rec[R_WIND_O] = q[0] - q[1]
         rec[R_WIND_I] = q[1] - q[2]
-        rec[R_WIND_RIG] = q[0] - q[trans]
+        rec[R_WIND_RIG] = q[int(P[P_INPUT])] - q[trans]
         rec[R_HS_O] = hs0
         rec[R_HS_I] = hs1
         rec[R_MOTOR_T] = tm
@@ -530,9 +553,14 @@ def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
     for c in range(CI.shape[0]):
         acc[CI[c, 0]] -= TF[c]
         acc[CI[c, 1]] += TF[c]
+    if P[P_CL_ON] > 0.0:
+        d = int(P[P_INPUT])
+        tc, _ = clutch_law(v[d] - v[0], P)
+        acc[d] -= tc
+        acc[0] += tc
     for i in range(ndof):
         acc[i] /= J[i]
-    motor = int(P[P_RIG0] + P[P_NRIG]) - 1
+    motor = int(P[P_MOTOR])
     if P[P_HELD] > 0.0:
         acc[motor] = 0.0
     return v.copy(), acc, -v[motor]
@@ -585,7 +613,10 @@ def elastic_energy(q, P, SF, SI, RIG, X):
         d = rig0 + e_
         prev = 2 if e_ == 0 else d - 1
         dq = q[prev] - q[d]
+        if e_ == 0 and P[P_BL_HALF] > 0.0:
+            dq = dead_zone(dq, P[P_BL_HALF])
         e += 0.5 * RIG[e_, 0] * dq * dq
+    e += effect_energy(q, P)
     return e
 
 
@@ -648,7 +679,9 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     om0 = P[P_OMEGA0]
     g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     held = P[P_HELD] > 0.0
-    motor = int(P[P_RIG0] + P[P_NRIG]) - 1
+    motor = int(P[P_MOTOR])
+    din = int(P[P_INPUT])
+    clutch = P[P_CL_ON] > 0.0
     vmax = P[P_VMAX]
     hs_on = P[P_HS_ON] > 0.0
     wlim = 0.0
@@ -728,11 +761,15 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             v0[i] = vi
             v[i] = vn
             e_damp -= dt * FD[i] * (om0 + 0.5 * (vi + vn))
-        e_in += dt * tin * (om0 + 0.5 * (v0[0] + v[0]))
         e_motor += dt * FE[motor] * (om0 + 0.5 * (v0[motor] + v[motor]))
         # 2) friction: each spring mass (the two masses of a nested pair together) is
         #    solved implicitly in its slip speeds, the housing bodies' speeds known
         e_fric += friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW)
+        if clutch:
+            # lock-up clutch slip (effect clutch_slip), implicit like the spring friction
+            e_fric += clutch_step(v, v0, P, J, dt)
+        # input work on the speeds that move the input DOF (after a clutch impulse)
+        e_in += dt * tin * (om0 + 0.5 * (v0[din] + v[din]))
         # 3) PI state and positions
         z -= dt * v[motor]
         for i in range(ndof):
@@ -747,4 +784,314 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             if hs_on:
                 if abs(q[0] - q[1]) > wlim or abs(q[1] - q[2]) > wlim:
                     return 3, step
+    return 0, nsteps
+
+
+# --- optional effects of the discrepancy library (dampersim.discrepancy.effects) --------
+# Each is off when its P slot is zero; see dampersim.solver.layout for the slots.
+
+
+@njit(cache=True, inline="always")
+def dead_zone(x, half):
+    """x with a band of +-half removed (free play): 0 inside, x -+ half outside."""
+    if x > half:
+        return x - half
+    if x < -half:
+        return x + half
+    return 0.0
+
+
+@njit(cache=True)
+def nested_radial_transfer(P, SI, FN):
+    """Effect nested_radial_transfer ([thesis] §5.3.2): the inner spring of each nested
+    pair presses on its outer spring, so a share P[P_NRT] of the inner mass's normal force
+    adds to the normal force of the outer spring's mass of the same index (spring rows 1
+    and 2: pair outer, pair inner)."""
+    if SI.shape[0] < 3:
+        return
+    n = SI[1, I_N]
+    o1 = SI[1, I_OFF]
+    o2 = SI[2, I_OFF]
+    f = P[P_NRT]
+    for i in range(n - 1):
+        FN[o1 + i] += f * FN[o2 + i]
+
+
+@njit(cache=True)
+def effect_forces(q, v, P, FC, FD):
+    """Conservative (FC) and dissipative (FD) torques of the smooth effects; returns their
+    elastic energy [J].
+
+    - inner_short_springs: a third stage on the inner windup w = q_sec - q_ter,
+      T = K3 * dead_zone(w, gap) (shorter springs engage either way once the slot has
+      closed by the clearance);
+    - turbine_drag: T = c (v_housing - v_sec) on J_sec, the reaction on the housing
+      (J_pri, or the clutch drive side when the clutch can slip);
+    - pendulum_absorber: linearised pendulum DOF on J_sec with restoring stiffness
+      J_a (n Omega0)^2 and damping c_a.
+    """
+    energy = 0.0
+    k3 = P[P_SS_K]
+    if k3 > 0.0:
+        d = dead_zone(q[1] - q[2], P[P_SS_GAP])
+        if d != 0.0:
+            t = k3 * d
+            FC[1] -= t
+            FC[2] += t
+            energy += 0.5 * k3 * d * d
+    c = P[P_TD_C]
+    if c > 0.0:
+        h = int(P[P_INPUT])
+        t = c * (v[h] - v[1])
+        FD[1] += t
+        FD[h] -= t
+    pa = int(P[P_PA_DOF])
+    if pa >= 0:
+        dq = q[1] - q[pa]
+        tk = P[P_PA_K] * dq
+        td = P[P_PA_C] * (v[1] - v[pa])
+        FC[1] -= tk
+        FC[pa] += tk
+        FD[1] -= td
+        FD[pa] += td
+        energy += 0.5 * P[P_PA_K] * dq * dq
+    return energy
+
+
+@njit(cache=True)
+def effect_energy(q, P):
+    """Elastic energy [J] stored by the effects' springs (see effect_forces)."""
+    energy = 0.0
+    if P[P_SS_K] > 0.0:
+        d = dead_zone(q[1] - q[2], P[P_SS_GAP])
+        energy += 0.5 * P[P_SS_K] * d * d
+    pa = int(P[P_PA_DOF])
+    if pa >= 0:
+        dq = q[1] - q[pa]
+        energy += 0.5 * P[P_PA_K] * dq * dq
+    return energy
+
+
+@njit(cache=True, inline="always")
+def clutch_law(s, P):
+    """Lock-up clutch torque [N m] passed from the drive side to J_pri at slip speed s
+    [rad/s] (effect clutch_slip) and its slope: capacity * tanh(s / s_slip) + c_oil * s."""
+    cap = P[P_CL_CAP]
+    ws = P[P_CL_WS]
+    th = fast_tanh(s / ws)
+    return cap * th + P[P_CL_VISC] * s, cap * (1.0 - th * th) / ws + P[P_CL_VISC]
+
+
+@njit(cache=True)
+def clutch_step(v, v0, P, J, dt):
+    """Clutch impulse for one step, backward Euler in the slip speed linearised about the
+    current slip (the locked clutch is very stiff); applied to v in place. Returns the
+    dissipation [J]: the clutch torque times the mean of the start-of-step (v0) and
+    end-of-step slips, the same speeds the kinetic energy and input work are taken on."""
+    d = int(P[P_INPUT])
+    s = v[d] - v[0]
+    t0, k0 = clutch_law(s, P)
+    mu = 1.0 / J[d] + 1.0 / J[0]
+    s1 = s - dt * mu * t0 / (1.0 + dt * mu * k0)
+    t = t0 + k0 * (s1 - s)
+    v[d] -= dt * t / J[d]
+    v[0] += dt * t / J[0]
+    return dt * t * 0.5 * (v0[d] - v0[0] + v[d] - v[0])
+
+
+# =====================================================================================
+# Pulsation generator (motored engine) chain: [thesis] chapter 4, model-spec §8.
+# Separate from the damper kernel above; array layouts in dampersim.solver.engine_layout.
+# =====================================================================================
+
+# engine scalar vector PE (must match dampersim.solver.engine_layout)
+_E_OMEGA0 = 0
+_E_DT = 1
+_E_PC = 2
+_E_PATM = 3
+_E_GAMMA = 4
+_E_AREA = 5
+_E_R = 6
+_E_L = 7
+_E_VC = 8
+_E_VBDC = 9
+_E_MREC = 10
+_E_RVISC = 11
+_E_RMU = 12
+_E_RTENS = 13
+_E_RBACK = 14  # pi D h_ring [m^2]
+_E_VREF = 15
+_E_BEAR = 16
+_E_KI = 17
+_E_MODE = 18  # 0: alone on a stiff shaft to a held output dyno; 1: coupled (linear downstream)
+_E_KLINK = 19
+_E_BLINK = 20
+_E_OUT_A = 21  # downstream output shaft: dof before, dof after (-1: ground), k, c
+_E_OUT_B = 22
+_E_OUT_K = 23
+_E_OUT_C = 24
+_E_VMAX = 25
+_E_DDYNO = 26  # active damping of the input dyno's torque control on its speed deviation [N m s/rad]
+
+# engine record columns
+ER_T = 0
+ER_TLINK = 1  # torque leaving the generator (into the stiff shaft / J_pri) [N m]
+ER_TDYNO = 2  # input dyno torque [N m]
+ER_W_TRANS = 3  # absolute speed of the generator's output transducer [rad/s]
+ER_THETA1 = 4  # crank angle of section 1 (cylinder 1 from TDC) [rad]
+ER_P1 = 5  # cylinder 1 pressure [Pa]
+ER_TGAS = 6  # sum of gas torques [N m]
+ER_TINER = 7  # sum of reciprocating inertia torques (velocity part) [N m]
+ER_TFRIC = 8  # sum of ring + bearing friction torques [N m]
+ER_TOUT = 9  # downstream output transducer torque (coupled), else = ER_TLINK [N m]
+ER_PMAX = 10  # largest cylinder pressure seen since the last record [Pa]
+NEREC = 11
+
+
+@njit(cache=True, inline="always")
+def crank_slider(th, r, L):
+    """Piston displacement from TDC s(theta) [m] and its first two crank-angle
+    derivatives ([thesis] Eq. 2 geometry, no pin offset)."""
+    sn = math.sin(th)
+    cs = math.cos(th)
+    root = math.sqrt(L * L - r * r * sn * sn)
+    s = r * (1.0 - cs) + L - root
+    ds = r * sn + r * r * sn * cs / root
+    dds = r * cs + r * r * (cs * cs - sn * sn) / root + (r * r * sn * cs) ** 2 / (root * root * root)
+    return s, ds, dds
+
+
+@njit(cache=True, inline="always")
+def cylinder_pressure(s, PE):
+    """Polytropic air-spring pressure P = P_c (V_BDC / V)^gamma [Pa] (model-spec §8: the
+    physical form; the thesis's Eq. 1 and 3 are misprinted)."""
+    vol = PE[_E_VC] + PE[_E_AREA] * s
+    return PE[_E_PC] * (PE[_E_VBDC] / vol) ** PE[_E_GAMMA]
+
+
+@njit(cache=True)
+def engine_cylinder_torques(th, om, PE, gas_scale):
+    """(gas, inertia-velocity, friction torque [N m], effective extra inertia [kg m^2],
+    pressure [Pa]) of one cylinder at crank angle th [rad] and speed om [rad/s]."""
+    s, ds, dds = crank_slider(th, PE[_E_R], PE[_E_L])
+    p = cylinder_pressure(s, PE)
+    pg = gas_scale * (p - PE[_E_PATM])
+    t_gas = pg * PE[_E_AREA] * ds
+    m = PE[_E_MREC]
+    t_in = -m * ds * dds * om * om
+    vp = ds * om
+    f_ring = PE[_E_RVISC] * vp + PE[_E_RMU] * (PE[_E_RTENS] + max(pg, 0.0) * PE[_E_RBACK]) * fast_tanh(vp / PE[_E_VREF])
+    t_fr = -f_ring * ds - PE[_E_BEAR] * om
+    return t_gas, t_in, t_fr, m * ds * ds, PE[_E_PATM] + pg
+
+
+@njit(cache=True)
+def engine_integrate(q, v, qd, vd, setpoint, gas_scale, PE, CH, CYL, AINV, MD, KD, rec_every, rec):
+    """March the pulsation generator chain ``len(setpoint)`` steps (symplectic Euler).
+
+    Chain DOFs (CH rows [J, B_j, K to previous, B_k to previous]): input dyno, coupling,
+    crank sections (CYL rows [dof, phase offset rad]), flange, transducer. The input dyno
+    applies setpoint[n] + integral control of the measured output torque (the rig
+    controlled the mean on the generator's output, [thesis] §4.3.1). Each crank section
+    carries one cylinder: gas torque, reciprocating inertia (effective inertia J + m s'^2
+    and velocity term -m s' s'' omega^2) and ring + bearing friction.
+
+    Mode 0: the transducer drives a stiff propshaft to a held output dyno (KLINK/BLINK).
+    Mode 1: it drives J_pri of a linear downstream system (damper + rig) integrated by
+    implicit Euler with AINV = (M + dt C + dt^2 K)^-1, MD = diag(M), KD = K.
+    Returns (status, step): 0 ok, 1 NaN, 2 runaway speed.
+    """
+    n = q.shape[0]
+    nd = qd.shape[0]
+    nsteps = setpoint.shape[0]
+    dt = PE[_E_DT]
+    om0 = PE[_E_OMEGA0]
+    mode = PE[_E_MODE]
+    F = np.zeros(n)
+    extra = np.zeros(n)
+    rhs_d = np.zeros(nd)
+    z = 0.0
+    irec = 0
+    pmax = 0.0
+    last = n - 1
+    oa = int(PE[_E_OUT_A])
+    ob = int(PE[_E_OUT_B])
+    for step in range(nsteps):
+        t = step * dt
+        for i in range(n):
+            F[i] = -CH[i, 1] * (om0 + v[i])
+            extra[i] = 0.0
+        for i in range(1, n):
+            ts = CH[i, 2] * (q[i - 1] - q[i]) + CH[i, 3] * (v[i - 1] - v[i])
+            F[i - 1] -= ts
+            F[i] += ts
+        tg = 0.0
+        ti = 0.0
+        tf = 0.0
+        p1 = 0.0
+        for c in range(CYL.shape[0]):
+            d = int(CYL[c, 0])
+            th = om0 * t + q[d] + CYL[c, 1]
+            om = om0 + v[d]
+            a, b, fr, jx, p = engine_cylinder_torques(th, om, PE, gas_scale[step])
+            F[d] += a + b + fr
+            extra[d] += jx
+            tg += a
+            ti += b
+            tf += fr
+            if c == 0:
+                p1 = p
+            if p > pmax:
+                pmax = p
+        if mode > 0.5:
+            tl = PE[_E_KLINK] * (q[last] - qd[0]) + PE[_E_BLINK] * (v[last] - vd[0])
+        else:
+            tl = PE[_E_KLINK] * q[last] + PE[_E_BLINK] * v[last]
+        F[last] -= tl
+        tdyno = setpoint[step] + PE[_E_KI] * z - PE[_E_DDYNO] * v[0]
+        F[0] += tdyno
+        tout = tl
+        if mode > 0.5 and nd > 0:
+            kb = 0.0 if ob < 0 else qd[ob]
+            vb = 0.0 if ob < 0 else vd[ob]
+            tout = PE[_E_OUT_K] * (qd[oa] - kb) + PE[_E_OUT_C] * (vd[oa] - vb)
+        if step % rec_every == 0 and irec < rec.shape[0]:
+            rec[irec, ER_T] = t
+            rec[irec, ER_TLINK] = tl
+            rec[irec, ER_TDYNO] = tdyno
+            rec[irec, ER_W_TRANS] = om0 + v[last]
+            rec[irec, ER_THETA1] = om0 * t + q[int(CYL[0, 0])] + CYL[0, 1]
+            rec[irec, ER_P1] = p1
+            rec[irec, ER_TGAS] = tg
+            rec[irec, ER_TINER] = ti
+            rec[irec, ER_TFRIC] = tf
+            rec[irec, ER_TOUT] = tout
+            rec[irec, ER_PMAX] = pmax
+            pmax = 0.0
+            irec += 1
+        for i in range(n):
+            v[i] += dt * F[i] / (CH[i, 0] + extra[i])
+        z += dt * (setpoint[step] - tl)
+        if mode > 0.5 and nd > 0:
+            for i in range(nd):
+                acc = 0.0
+                for j in range(nd):
+                    acc += KD[i, j] * qd[j]
+                rhs_d[i] = MD[i] * vd[i] - dt * acc
+            rhs_d[0] += dt * tl
+            for i in range(nd):
+                acc = 0.0
+                for j in range(nd):
+                    acc += AINV[i, j] * rhs_d[j]
+                vd[i] = acc
+            for i in range(nd):
+                qd[i] += dt * vd[i]
+        for i in range(n):
+            q[i] += dt * v[i]
+        if step % 256 == 0:
+            for i in range(n):
+                if not (v[i] == v[i]):
+                    return 1, step
+                if abs(v[i]) > PE[_E_VMAX]:
+                    return 2, step
     return 0, nsteps

@@ -10,6 +10,8 @@ index                 body
 3 ...                 segment masses of each integrated spring, in spring order
                       (outer spring; nested pair outer; nested pair inner)
 then                  rig elements in power-flow order; the last is the motor
+then (optional)       clutch drive side (effect clutch_slip), pendulum
+                      absorber (effect pendulum_absorber)
 ====================  =========================================================
 
 Each integrated spring stands for ``count`` identical springs: its masses carry
@@ -51,7 +53,22 @@ P_NRIG = 18
 P_RIG0 = 19  # DOF index of the first rig element
 P_TRANS = 20  # DOF index of the output transducer element
 P_VMAX = 21  # divergence threshold on relative speed [rad/s]
-P_SIZE = 22
+# optional effects (dampersim.discrepancy.effects); a zero entry switches an effect off
+P_MOTOR = 22  # DOF index of the output motor
+P_INPUT = 23  # DOF the input torque acts on (J_pri, or the clutch drive side)
+P_CL_ON = 24  # 1.0: lock-up clutch of finite capacity between P_INPUT and J_pri
+P_CL_CAP = 25  # clutch capacity [N m]
+P_CL_WS = 26  # clutch slip speed of the friction build-up [rad/s]
+P_CL_VISC = 27  # clutch oil-film drag [N m s/rad]
+P_BL_HALF = 28  # half the free play of the first rig shaft [rad]
+P_SS_K = 29  # third-stage stiffness on the inner windup (all short springs) [N m/rad]
+P_SS_GAP = 30  # inner windup at which it engages [rad]
+P_TD_C = 31  # turbine drag against the housing [N m s/rad]
+P_PA_DOF = 32  # DOF index of the pendulum absorber (-1: none)
+P_PA_K = 33  # pendulum restoring stiffness J_a (n Omega0)^2 [N m/rad]
+P_PA_C = 34  # pendulum damping [N m s/rad]
+P_NRT = 35  # share of the nested inner spring's normal force loading the outer spring
+P_SIZE = 36
 
 # --- spring table SF (float) and SI (int), one row per integrated spring --------------
 F_KSEG = 0  # segment stiffness k_seg = N k_spring [N m/rad]
@@ -143,13 +160,15 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
         return len(SF) - 1, first
 
     no, ni = s.solver.outer_segments, s.solver.inner_segments
+    # effect spring_preload adds its radial preload to every spring mass
+    extra = s.effects.spring_preload.force if s.effects.spring_preload.enabled else 0.0
     i_o, first_o = add_spring("outer", "outer", PRI, s.outer, s.outer.spring, no)
-    SF[i_o][F_PRELOAD] = fr.outer.preload
+    SF[i_o][F_PRELOAD] = fr.outer.preload + extra
     i_po, first_po = add_spring("pair_outer", "inner", SEC, s.inner, s.inner.spring, ni)
-    SF[i_po][F_PRELOAD] = fr.pair_outer.preload
+    SF[i_po][F_PRELOAD] = fr.pair_outer.preload + extra
     if s.inner.nested is not None:
         i_pi, first_pi = add_spring("pair_inner", "inner", SEC, s.inner, s.inner.nested, ni)
-        SF[i_pi][F_PRELOAD] = fr.pair_inner.preload
+        SF[i_pi][F_PRELOAD] = fr.pair_inner.preload + extra
 
     singles = []  # [mass, contact]: a spring mass rubbing on one body
     pairs = []  # [outer mass, inner mass or -1, contact on J_sec, on J_ter, inner on outer]
@@ -192,6 +211,8 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
         J.append(e.inertia)
         rig.append((e.shaft_stiffness, e.shaft_damping, e.inertia_damping))
     trans = rig0 + rig_names.index(s.rig.output_transducer)
+    motor = len(J) - 1
+    input_dof, pa_dof = _add_effect_dofs(s, omega0, names, J)
 
     P = np.zeros(P_SIZE)
     P[P_OMEGA0] = omega0
@@ -211,6 +232,10 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
     P[P_RIG0] = rig0
     P[P_TRANS] = trans
     P[P_VMAX] = 50.0 * max(abs(omega0), 100.0) + 5000.0
+    P[P_MOTOR] = motor
+    P[P_INPUT] = input_dof
+    P[P_PA_DOF] = pa_dof
+    _effect_slots(s, omega0, P)
     return Layout(
         P=P,
         SF=np.array(SF, dtype=np.float64),
@@ -226,6 +251,50 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
         n_nodes=n_nodes,
         rig_names=tuple(rig_names),
     )
+
+
+def _add_effect_dofs(s: DamperSystem, omega0: float, names: list, J: list) -> tuple[int, int]:
+    """Append the DOFs of enabled effects after the rig; returns (input DOF, pendulum DOF|-1).
+
+    clutch_slip splits J_pri: the engine-side share (cover, pump) becomes the clutch drive
+    DOF that takes the input torque; the rest (clutch plate, drive ring) stays J_pri.
+    """
+    eff = s.effects
+    input_dof, pa_dof = PRI, -1
+    if eff.clutch_slip.enabled:
+        f = eff.clutch_slip.drive_inertia_fraction
+        J[PRI] = (1.0 - f) * s.inertias.primary
+        names.append("clutch_drive")
+        J.append(f * s.inertias.primary)
+        input_dof = len(J) - 1
+    if eff.pendulum_absorber.enabled:
+        names.append("pendulum")
+        J.append(eff.pendulum_absorber.inertia)
+        pa_dof = len(J) - 1
+    return input_dof, pa_dof
+
+
+def _effect_slots(s: DamperSystem, omega0: float, P: np.ndarray) -> None:
+    """Fill the P slots of the optional effects (zeros leave an effect off)."""
+    eff = s.effects
+    if eff.clutch_slip.enabled:
+        P[P_CL_ON] = 1.0
+        P[P_CL_CAP] = eff.clutch_slip.capacity
+        P[P_CL_WS] = eff.clutch_slip.slip_speed
+        P[P_CL_VISC] = eff.clutch_slip.viscous
+    if eff.output_backlash.enabled:
+        P[P_BL_HALF] = 0.5 * eff.output_backlash.free_play
+    if eff.inner_short_springs.enabled:
+        P[P_SS_K] = eff.inner_short_springs.count * eff.inner_short_springs.stiffness
+        P[P_SS_GAP] = eff.inner_short_springs.clearance
+    if eff.turbine_drag.enabled:
+        P[P_TD_C] = eff.turbine_drag.coefficient
+    if eff.pendulum_absorber.enabled:
+        pa = eff.pendulum_absorber
+        P[P_PA_K] = pa.inertia * (pa.order * omega0) ** 2
+        P[P_PA_C] = pa.damping
+    if eff.nested_radial_transfer.enabled and s.inner.nested is not None:
+        P[P_NRT] = eff.nested_radial_transfer.fraction
 
 
 def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:

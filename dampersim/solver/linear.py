@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dampersim.parameters.model import DamperSystem
-from dampersim.solver.layout import F_COUNT, F_KSEG, I_A, I_N, I_OFF, build_layout
+from dampersim.solver.layout import F_COUNT, F_KSEG, I_A, I_N, I_OFF, P_MOTOR, P_PA_C, P_PA_DOF, P_PA_K, P_RIG0, P_SS_K, P_TD_C, build_layout
 
 
 @dataclass(frozen=True)
@@ -73,8 +73,13 @@ class LinearModel:
         }
 
 
-def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0):
-    lay = build_layout(system, 100.0)
+def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: float = 100.0):
+    import dataclasses
+
+    if system.effects.clutch_slip.enabled:  # linearised with the lock-up clutch closed
+        eff = dataclasses.replace(system.effects, clutch_slip=dataclasses.replace(system.effects.clutch_slip, enabled=False))
+        system = dataclasses.replace(system, effects=eff)
+    lay = build_layout(system, omega0)
     n = lay.ndof
     K = np.zeros((n, n))
     C = np.zeros((n, n))
@@ -99,7 +104,7 @@ def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0):
         for j in range(nseg):
             g = grad(j + 1) - grad(j)
             K += kk * np.outer(g, g)
-    rig0 = lay.ndof - len(lay.rig)
+    rig0 = int(lay.P[P_RIG0])
     for e in range(len(lay.rig)):
         d = rig0 + e
         p = 2 if e == 0 else d - 1
@@ -109,6 +114,18 @@ def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0):
             mat[p, d] -= val
             mat[d, p] -= val
         C[d, d] += lay.rig[e, 2]
+    # effects: pendulum absorber (tuned at omega0), turbine drag; the third inner stage
+    # engages only beyond its clearance and is left out like the hardstops
+    pa = int(lay.P[P_PA_DOF])
+    pairs = [(1, pa, lay.P[P_PA_K], lay.P[P_PA_C])] if pa >= 0 else []
+    pairs.append((0, 1, 0.0, lay.P[P_TD_C]))
+    for p, d, kk, cc in pairs:
+        for mat, val in ((K, kk), (C, cc)):
+            mat[p, p] += val
+            mat[d, d] += val
+            mat[p, d] -= val
+            mat[d, p] -= val
+    _ = P_SS_K
     if hardstop_stiffness > 0:
         for a in (0, 1):
             K[a, a] += hardstop_stiffness
@@ -131,9 +148,10 @@ def linearise(system: DamperSystem, motor: str = "free") -> LinearModel:
     e = lay.rig_names.index(system.rig.output_transducer)
     prev = 2 if e == 0 else trans - 1
     if motor == "held":
-        keep = np.arange(len(names) - 1)
+        mdof = int(lay.P[P_MOTOR])
+        keep = np.array([i for i in range(len(names)) if i != mdof])
         M, C, K = M[np.ix_(keep, keep)], C[np.ix_(keep, keep)], K[np.ix_(keep, keep)]
-        names = names[:-1]
+        names = [names[i] for i in keep]
     return LinearModel(
         dof_names=tuple(names),
         M=M,

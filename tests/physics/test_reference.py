@@ -21,6 +21,18 @@ VARIANTS = {
         "outer.secondary_stopper_half_width": 0.12,  # unequal stoppers
     },
     "other segment counts": {"solver.outer_segments": 7, "solver.inner_segments": 5, "friction.gamma5": 80.0},
+    # effects of the discrepancy library
+    "clutch slip": {"effects.clutch_slip.enabled": True, "effects.clutch_slip.capacity": 300.0},
+    "clutch slip, held motor": {"effects.clutch_slip.enabled": True, "motor.mode": "held"},
+    "output backlash": {"effects.output_backlash.enabled": True, "effects.output_backlash.free_play": 0.03},
+    "inner short springs": {"effects.inner_short_springs.enabled": True, "effects.inner_short_springs.clearance": 0.02},
+    "turbine drag": {"effects.turbine_drag.enabled": True, "effects.turbine_drag.coefficient": 5.0},
+    "pendulum absorber": {"effects.pendulum_absorber.enabled": True, "effects.pendulum_absorber.order": 2.5},
+    "nested radial transfer": {"effects.nested_radial_transfer.enabled": True},
+    "spring preload": {"effects.spring_preload.enabled": True},
+    "all effects": {f"effects.{e}.enabled": True for e in (
+        "clutch_slip", "output_backlash", "inner_short_springs", "turbine_drag", "pendulum_absorber",
+        "nested_radial_transfer", "spring_preload", "transducer_bandwidth")},
 }
 
 

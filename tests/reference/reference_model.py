@@ -6,7 +6,8 @@ numba, no flattened tables. The kernel's right-hand side must agree with it.
 State convention (the documented DOF order of :mod:`dampersim.solver.layout`):
 J_pri, J_sec, J_ter; the N_o-1 outer-spring masses; the N_i-1 masses of the nested
 pair's outer spring; the N_i-1 masses of its inner spring; the rig elements (motor
-last). Angles are taken in a frame turning at Omega0, speeds relative to Omega0.
+last); then, when enabled, the clutch drive side (effect clutch_slip) and the
+pendulum absorber (effect pendulum_absorber). Angles are taken in a frame turning at Omega0, speeds relative to Omega0.
 """
 
 from __future__ import annotations
@@ -90,26 +91,43 @@ class Spring:
 def accelerations(system, omega0, q, v, z, tin):
     """Accelerations [rad/s^2] of all DOFs, friction explicit; motor held -> 0."""
     s = system
+    ef = s.effects
     no, ni = s.solver.outer_segments, s.solver.inner_segments
-    springs = [Spring(s.outer.spring, s.outer, no, 0, 3, s.friction.outer.preload)]
-    po = Spring(s.inner.spring, s.inner, ni, 1, 3 + no - 1, s.friction.pair_outer.preload)
+    extra = ef.spring_preload.force if ef.spring_preload.enabled else 0.0
+    springs = [Spring(s.outer.spring, s.outer, no, 0, 3, s.friction.outer.preload + extra)]
+    po = Spring(s.inner.spring, s.inner, ni, 1, 3 + no - 1, s.friction.pair_outer.preload + extra)
     springs.append(po)
     pi_ = None
     if s.inner.nested is not None:
-        pi_ = Spring(s.inner.nested, s.inner, ni, 1, 3 + no - 1 + ni - 1, s.friction.pair_inner.preload)
+        pi_ = Spring(s.inner.nested, s.inner, ni, 1, 3 + no - 1 + ni - 1, s.friction.pair_inner.preload + extra)
         springs.append(pi_)
     rig0 = springs[-1].dofs[-1] + 1
     elements = s.rig.elements
-    n = rig0 + len(elements)
+    motor = rig0 + len(elements) - 1
+    n = motor + 1
+    drive = pend = None
+    if ef.clutch_slip.enabled:
+        drive, n = n, n + 1
+    if ef.pendulum_absorber.enabled:
+        pend, n = n, n + 1
     assert len(q) == n
     inertia = np.zeros(n)
     inertia[:3] = [s.inertias.primary, s.inertias.secondary, s.inertias.tertiary]
+    if drive is not None:
+        inertia[drive] = ef.clutch_slip.drive_inertia_fraction * s.inertias.primary
+        inertia[0] -= inertia[drive]
+    if pend is not None:
+        inertia[pend] = ef.pendulum_absorber.inertia
     for sp in springs:
         inertia[sp.dofs] = sp.count * sp.mass * sp.r_eff**2
     torque = np.zeros(n)
     normal = np.zeros(n)
     for sp in springs:
         sp.apply(q, v, omega0, torque, normal)
+    if pi_ is not None and ef.nested_radial_transfer.enabled:
+        # the inner spring presses on the outer spring of its pair ([thesis] §5.3.2)
+        for do, di in zip(po.dofs, pi_.dofs):
+            normal[do] += ef.nested_radial_transfer.fraction * normal[di]
     # hardstops: one-sided stiff damped contact on each set's windup
     if s.hardstops.enabled:
         for a, st in ((0, s.outer), (1, s.inner)):
@@ -130,12 +148,37 @@ def accelerations(system, omega0, q, v, z, tin):
         d = rig0 + e
         p = 2 if e == 0 else d - 1
         inertia[d] = el.inertia
-        t = el.shaft_stiffness * (q[p] - q[d]) + el.shaft_damping * (v[p] - v[d])
+        dq = q[p] - q[d]
+        if e == 0 and ef.output_backlash.enabled:  # free play: no torque inside the band
+            half = 0.5 * ef.output_backlash.free_play
+            dq = float(np.sign(dq) * max(abs(dq) - half, 0.0))
+        t = el.shaft_stiffness * dq + (el.shaft_damping * (v[p] - v[d]) if dq != 0.0 else 0.0)
         torque[p] -= t
         torque[d] += t
         torque[d] -= el.inertia_damping * (omega0 + v[d])
-    torque[0] += tin
-    motor = n - 1
+    housing = 0 if drive is None else drive
+    torque[housing] += tin
+    if drive is not None:  # lock-up clutch: Coulomb (smoothed) plus oil drag
+        cl = ef.clutch_slip
+        slip = v[drive] - v[0]
+        t = cl.capacity * np.tanh(slip / cl.slip_speed) + cl.viscous * slip
+        torque[drive] -= t
+        torque[0] += t
+    if ef.inner_short_springs.enabled:
+        w = q[1] - q[2]
+        d = float(np.sign(w) * max(abs(w) - ef.inner_short_springs.clearance, 0.0))
+        t = ef.inner_short_springs.count * ef.inner_short_springs.stiffness * d
+        torque[1] -= t
+        torque[2] += t
+    if ef.turbine_drag.enabled:
+        t = ef.turbine_drag.coefficient * (v[housing] - v[1])
+        torque[1] += t
+        torque[housing] -= t
+    if pend is not None:
+        pa = ef.pendulum_absorber
+        t = pa.inertia * (pa.order * omega0) ** 2 * (q[1] - q[pend]) + pa.damping * (v[1] - v[pend])
+        torque[1] -= t
+        torque[pend] += t
     if s.motor.mode == "pi":
         torque[motor] += -s.motor.proportional_gain * v[motor] + s.motor.integral_gain * z
     # friction (Eq. 27-28)

@@ -1,0 +1,46 @@
+"""Wall time of each chapter 7 study on its full grid: cold (empty cache) and cached.
+
+    python bench/bench_studies.py [--out DIR] [--quick] [NAME ...]
+
+Uses a fresh temporary cache directory unless DAMPERSIM_CACHE_DIR is set, runs every
+study twice with the process pool and prints one line per run; with --out the full
+result documents are written as DIR/NAME.json (the numbers in docs/thesis-comparison.md).
+"""
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("names", nargs="*")
+    ap.add_argument("--out")
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    if not os.environ.get("DAMPERSIM_CACHE_DIR"):
+        os.environ["DAMPERSIM_CACHE_DIR"] = tempfile.mkdtemp(prefix="dampersim-bench-")
+    from dampersim.studies import STUDIES, run_study
+
+    names = args.names or list(STUDIES)
+    for name in names:
+        times = []
+        for label in ("cold", "cached"):
+            t0 = time.perf_counter()
+            res = run_study(name, quick=args.quick, executor="processes")
+            times.append(time.perf_counter() - t0)
+            print(f"{name:22s} {label:6s} {times[-1]:8.1f} s  points {res['points']:5d}  from cache {res['from_cache']:5d}  "
+                  f"checks {res['checks']}", flush=True)
+        if args.out:
+            os.makedirs(args.out, exist_ok=True)
+            res["bench_wall_time_s"] = {"cold": times[0], "cached": times[1]}
+            with open(os.path.join(args.out, f"{name}.json"), "w") as fh:
+                json.dump(res, fh, allow_nan=False)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

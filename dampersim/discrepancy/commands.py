@@ -1,0 +1,135 @@
+"""CLI: ``effects``, ``synth`` and ``diagnose`` (the discrepancy workflow)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+
+from dampersim.errors import InputError
+
+
+def _jsonable(obj):
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (float, np.floating)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def cmd_effects(args) -> int:
+    from dampersim.discrepancy.effects import catalogue
+
+    cat = catalogue()
+    if args.json:
+        print(json.dumps([{"name": c["name"], "description": c["description"],
+                           "parameters": [{k: p[k] for k in ("name", "unit", "default", "min", "max")} for p in c["parameters"]],
+                           "cause": c["cause"], "signature": c["signature"],
+                           "magnitude_parameter": c["magnitude_parameter"]} for c in cat], indent=2))
+        return 0
+    for c in cat:
+        print(f"{c['name']}: {c['description']}")
+        for p in c["parameters"]:
+            print(f"    {p['name']} = {p['default']} {p['unit']}  [{p['min']}, {p['max']}]  {p['doc']}")
+        print(f"    signature: {c['signature']}")
+    return 0
+
+
+def cmd_synth(args) -> int:
+    from dampersim.discrepancy.effects import parse_effect_spec
+    from dampersim.discrepancy.synth import synthesize
+    from dampersim.parameters import load_parameters
+
+    effects = [parse_effect_spec(e) for e in args.effect or ()]
+    if not (0.0 <= args.perturb < 1.0):
+        raise InputError(f"--perturb {args.perturb!r}: accepted is a fraction in [0, 1)")
+    if not math.isfinite(args.noise_db) or not -80 <= args.noise_db <= 40:
+        raise InputError(f"--noise-db {args.noise_db!r}: accepted is -80 to 40 dB re 1 N m")
+    if os.path.exists(args.out) and not os.path.isdir(args.out):
+        raise InputError(f"--out {args.out}: accepted is a folder (it exists as a file)")
+    base = load_parameters(args.params) if args.params else None
+    doc = synthesize(args.out, campaign=args.campaign, effects=effects, perturb=args.perturb, noise_db=args.noise_db,
+                     seed=args.seed, truth=args.truth, base=base, workers=args.workers, record=args.record)
+    print(f"wrote {len(doc['points'])} test points to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
+    return 0
+
+
+def cmd_diagnose(args) -> int:
+    from dampersim.discrepancy.campaign import read_campaign
+    from dampersim.discrepancy.diagnose import diagnose
+    from dampersim.parameters import load_parameters, save_toml
+
+    camp = read_campaign(args.campaign)
+    if camp.problems:
+        print(camp.report_text(), file=sys.stderr)
+    system = load_parameters(args.params) if args.params else None
+
+    def progress(frac, text):
+        if not args.json:
+            print(f"[{100 * frac:5.1f} %] {text}", file=sys.stderr, flush=True)
+
+    diag = diagnose(camp, system, workers=args.workers, progress=progress)
+    out = _jsonable(diag.to_json())
+    if args.out_params:
+        import dataclasses
+
+        sysout = dataclasses.replace(diag.system, name=f"{diag.system.name}-augmented",
+                                     source=f"{diag.system.source}; diagnosed from campaign {camp.name}: {diag.verdict}"
+                                     + (f" ({diag.effect})" if diag.effect else ""))
+        save_toml(sysout, args.out_params)
+    if args.report:
+        from dampersim.fileio import write_text_atomic
+        from dampersim.plotting.discrepancy import report_html
+
+        write_text_atomic(args.report, report_html(diag, camp.name))
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"verdict: {diag.verdict}" + (f" -> {diag.effect} {diag.effect_parameters}" if diag.effect else ""))
+        print(f"noise floor {diag.noise_floor_nm:.3f} N m; held-out gap before {diag.gap_before_nm:.3f}, "
+              f"calibrated {diag.gap_calibrated_nm:.3f}, after {diag.gap_after_nm:.3f} N m")
+        for r in diag.ranking:
+            g = r["gap_held_out_nm"]
+            print(f"  {r['effect']:24s} " + (f"held-out gap {g:.3f} N m {r['parameters']}" if g is not None else "screened out"))
+    return 0
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("effects", help="list the candidate effects of the discrepancy workflow")
+    p.add_argument("--json", action="store_true", help="machine-readable list")
+    p.set_defaults(func=cmd_effects)
+
+    p = sub.add_parser("synth", help="write a synthetic measured campaign (truth optionally hiding effects)")
+    p.add_argument("--out", required=True, help="campaign folder to write")
+    p.add_argument("--campaign", default="all", choices=("torque-curve", "mapping", "hysteresis", "all"))
+    p.add_argument("--effect", action="append", metavar="NAME[:param=value,...]", help="hidden effect (repeatable)")
+    p.add_argument("--perturb", type=float, default=0.1, help="relative perturbation of the estimated parameters")
+    p.add_argument("--noise-db", type=float, default=0.0, help="sensor noise RMS in dB re 1 N m")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--truth", help="file for the truth (outside the campaign folder)")
+    p.add_argument("--params", help="base parameter set (TOML); default set if omitted")
+    p.add_argument("--record", type=float, default=1.25, help="record length of torsional points [s]")
+    p.add_argument("--workers", type=int, default=1, help="processes")
+    p.set_defaults(func=cmd_synth)
+
+    p = sub.add_parser("diagnose", help="find, name and add the effect the model is missing")
+    p.add_argument("campaign", help="campaign folder (manifest.csv + time series)")
+    p.add_argument("--params", help="parameter set to diagnose (TOML); default set if omitted")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--report", help="write an HTML report")
+    p.add_argument("--out-params", help="write the augmented parameter set (TOML)")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: up to 2)")
+    p.set_defaults(func=cmd_diagnose)
+
+
+__all__ = ["add_parsers", "cmd_effects", "cmd_synth", "cmd_diagnose"]

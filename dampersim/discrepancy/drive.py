@@ -1,0 +1,142 @@
+"""Drive a parameter set with measured test points (the compare step's simulations).
+
+Task functions are module level and take plain picklable arguments so they run in a
+spawn process pool (:func:`run_many`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dampersim.analysis.spectrum import order_amplitudes
+
+ORDERS = tuple(float(k) for k in range(1, 9))
+#: time step of the diagnosis model [s] (the stability bound of the default set is ~4.5e-5)
+DIAGNOSIS_TIME_STEP = 4.0e-5
+RAMP_FILTER_HZ = 10.0  # [thesis] §3.4: loops low-passed at 10 Hz
+
+
+@dataclass(frozen=True, eq=False)
+class RecordedRamp:
+    """A measured ramp torque as the drive, played as recorded (the model starts unloaded,
+    as the rig's ramps do). speed [rad/s]; time [s]; torque_samples [N m]."""
+
+    speed: float
+    time: np.ndarray = field(repr=False)
+    torque_samples: np.ndarray = field(repr=False)
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1] - self.time[0])
+
+    steady_start = 0.0
+
+    def torque(self, t):
+        return np.interp(np.asarray(t, dtype=float), self.time - self.time[0], self.torque_samples)
+
+
+def diagnosis_system(system, time_step: float = DIAGNOSIS_TIME_STEP):
+    """``system`` with the diagnosis solver settings (coarser step, no segment records)."""
+    from dampersim.solver.linear import max_stable_time_step
+
+    dt = min(time_step, 0.98 * max_stable_time_step(system))
+    return dataclasses.replace(system, solver=dataclasses.replace(system.solver, time_step=dt))
+
+
+def measured_orders(point) -> np.ndarray:
+    """Output order amplitudes [N m] of a measured torsional point (whole record)."""
+    return order_amplitudes(point.output_torque, point.sample_rate_hz, point.speed, ORDERS)
+
+
+def measured_input_orders(point) -> np.ndarray:
+    return order_amplitudes(point.input_torque, point.sample_rate_hz, point.speed, ORDERS)
+
+
+def split_half_spread(point) -> np.ndarray:
+    """Half the difference of the output order amplitudes of the two record halves [N m]:
+    a repeatability estimate of one record's order amplitudes."""
+    n = len(point.output_torque) // 2
+    a = order_amplitudes(point.output_torque[:n], point.sample_rate_hz, point.speed, ORDERS)
+    b = order_amplitudes(point.output_torque[n:2 * n], point.sample_rate_hz, point.speed, ORDERS)
+    return 0.5 * np.abs(a - b)
+
+
+def simulate_point(system, point) -> dict:
+    """Simulate one measured point with ``system``.
+
+    torsional: {"orders": output order amplitudes [N m] over the record's length};
+    ramp: {"torque", "windup"} on the record's time base (windup [rad]).
+    """
+    from dampersim.excitation import MeasuredTorque
+    from dampersim.simulation import simulate
+
+    if point.kind == "torsional":
+        ex = MeasuredTorque(point.speed, point.time, point.input_torque)
+        res = simulate(system, ex, record_segments=False)
+        w = res.window(point.duration)
+        return {"orders": order_amplitudes(res.output_torque[w], res.sample_rate, point.speed, ORDERS)}
+    ex = RecordedRamp(point.speed, point.time, point.input_torque)
+    res = simulate(system, ex, record_segments=False)
+    wind = np.interp(point.time, res.t, res.windup_total)
+    return {"windup": wind}
+
+
+def _task(args):
+    system, point = args
+    try:
+        return simulate_point(system, point)
+    except Exception as exc:  # noqa: BLE001 - a failed point is reported, not fatal
+        return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+def _init():
+    os.environ.setdefault("NUMBA_THREADING_LAYER", "forksafe")
+
+
+class Runner:
+    """Runs (system, point) tasks serially or in a spawn process pool; counts simulations."""
+
+    def __init__(self, workers: int | None = None, progress=None):
+        self.workers = max(1, int(workers if workers is not None else min(2, os.cpu_count() or 1)))
+        self.progress = progress
+        self.count = 0
+        self._pool = None
+
+    def __enter__(self):
+        if self.workers > 1:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=_init)
+        return self
+
+    def __exit__(self, *exc):
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def map(self, tasks) -> list:
+        tasks = list(tasks)
+        self.count += len(tasks)
+        if self._pool is None:
+            return [_task(t) for t in tasks]
+        return list(self._pool.map(_task, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
+
+
+def windup_error_deg(sim_windup, point) -> float:
+    """RMS difference [deg] of the 10 Hz low-passed simulated and measured windup."""
+    from dampersim.analysis.hysteresis import lowpass_first_order
+
+    fs = point.sample_rate_hz
+    a = lowpass_first_order(sim_windup, fs, min(RAMP_FILTER_HZ, 0.45 * fs))
+    b = lowpass_first_order(point.windup, fs, min(RAMP_FILTER_HZ, 0.45 * fs))
+    return float(math.degrees(np.sqrt(np.mean((a - b) ** 2))))
+
+
+__all__ = ["ORDERS", "RecordedRamp", "diagnosis_system", "measured_orders", "split_half_spread", "simulate_point",
+           "Runner", "windup_error_deg"]

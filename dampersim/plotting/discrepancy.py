@@ -1,0 +1,98 @@
+"""Figures of the discrepancy workflow: gap bars, residual maps, ranking, overlays."""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+import plotly.graph_objects as go
+from plotly.subplots import make_subplots
+
+from dampersim.plotting import theme
+
+STAGES = ("before", "calibrated", "after")
+
+
+def gap_figure(diag, title: str | None = "Held-out gap") -> go.Figure:
+    """Bars: held-out gap before, after calibration, after augmentation, with the noise floor."""
+    vals = [diag.gap_before_nm, diag.gap_calibrated_nm, diag.gap_after_nm]
+    fig = go.Figure(go.Bar(x=["model as given", "calibrated", "augmented"], y=vals,
+                           text=[f"{v:.2f}" for v in vals], textposition="outside"))
+    fig.add_hline(y=diag.noise_floor_nm, line_dash="dash", annotation_text="noise floor")
+    fig.update_yaxes(title_text="RMS order error, orders 1-8 [N m]")
+    return theme.apply(fig, title)
+
+
+def residual_map_figure(diag, title: str | None = "Where the model disagrees") -> go.Figure:
+    """RMS order error per test point over (speed, mean torque), one panel per stage."""
+    fig = make_subplots(rows=1, cols=3, subplot_titles=("model as given", "calibrated", "augmented"), shared_yaxes=True)
+    vmax = max(max(np.sqrt(np.mean(np.square(v))) for v in diag.residuals[s].values()) for s in STAGES) or 1.0
+    for c, stage in enumerate(STAGES, start=1):
+        pts = diag.points
+        rms = [float(np.sqrt(np.mean(np.square(diag.residuals[stage][p["id"]])))) for p in pts]
+        fig.add_trace(go.Scatter(
+            x=[p["speed_rpm"] for p in pts], y=[p["mean_torque_nm"] for p in pts], mode="markers",
+            marker=dict(size=14, color=rms, cmin=0, cmax=vmax, colorscale="Viridis", showscale=c == 3,
+                        symbol=["diamond" if p["held_out"] else "circle" for p in pts],
+                        colorbar=dict(title="N m")),
+            text=[f"{p['id']}: {r:.2f} N m" + (" (held out)" if p["held_out"] else "") for p, r in zip(pts, rms)],
+            hoverinfo="text", showlegend=False), row=1, col=c)
+        fig.update_xaxes(title_text="speed [rpm]", row=1, col=c)
+    fig.update_yaxes(title_text="mean torque [N m]", row=1, col=1)
+    return theme.apply(fig, title)
+
+
+def order_residual_figure(diag, title: str | None = "Error by order") -> go.Figure:
+    """RMS error per order over all points for each stage."""
+    fig = go.Figure()
+    for stage in STAGES:
+        e = np.array(list(diag.residuals[stage].values()))
+        fig.add_trace(go.Bar(name=stage, x=list(range(1, e.shape[1] + 1)), y=np.sqrt(np.mean(e * e, axis=0))))
+    fig.update_xaxes(title_text="engine order")
+    fig.update_yaxes(title_text="RMS error [N m]")
+    return theme.apply(fig, title)
+
+
+def ranking_figure(diag, title: str | None = "Candidate effects (held-out gap)") -> go.Figure:
+    rows = [r for r in diag.ranking if r["gap_held_out_nm"] is not None]
+    fig = go.Figure(go.Bar(x=[r["effect"] for r in rows], y=[r["gap_held_out_nm"] for r in rows]))
+    fig.add_hline(y=diag.gap_calibrated_nm, line_dash="dot", annotation_text="calibrated, no effect")
+    fig.add_hline(y=diag.noise_floor_nm, line_dash="dash", annotation_text="noise floor")
+    fig.update_yaxes(title_text="held-out gap [N m]")
+    return theme.apply(fig, title)
+
+
+def overlay_figure(diag, point_id: str, title: str | None = None) -> go.Figure:
+    """Measured vs simulated output order amplitudes of one point, each stage."""
+    p = next(q for q in diag.points if q["id"] == point_id)
+    k = list(range(1, len(p["measured"]) + 1))
+    fig = go.Figure(go.Bar(name="measured", x=k, y=p["measured"]))
+    for stage in STAGES:
+        fig.add_trace(go.Scatter(name=stage, x=k, y=p[stage], mode="markers+lines"))
+    fig.update_xaxes(title_text="engine order")
+    fig.update_yaxes(title_text="output amplitude [N m]", type="log")
+    return theme.apply(fig, title or f"{point_id}: output orders")
+
+
+def report_html(diag, campaign_name: str = "") -> str:
+    """A self-contained HTML report (plotly.js from the CDN)."""
+    parts = [f"<h1>Discrepancy report {html.escape(campaign_name)}</h1>",
+             f"<p><b>Verdict:</b> {html.escape(diag.verdict)}"
+             + (f" &mdash; <b>{html.escape(diag.effect)}</b> {html.escape(str(diag.effect_parameters))}" if diag.effect else "")
+             + "</p>",
+             f"<p>Noise floor {diag.noise_floor_nm:.3f} N m; held-out gap: as given {diag.gap_before_nm:.3f}, "
+             f"calibrated {diag.gap_calibrated_nm:.3f}, augmented {diag.gap_after_nm:.3f} N m "
+             f"({len(diag.held_out_points)} held-out points).</p>",
+             f"<p>Residual collapses on: {html.escape(str(diag.locate.get('collapses_on', '')))}</p>"]
+    if diag.problems:
+        parts.append("<h2>Campaign problems</h2><ul>" + "".join(
+            f"<li>{html.escape(q['file'])} [{html.escape(q['field'])}]: {html.escape(q['message'])}</li>" for q in diag.problems) + "</ul>")
+    figs = [gap_figure(diag), residual_map_figure(diag), order_residual_figure(diag), ranking_figure(diag)]
+    worst = max(diag.points, key=lambda p: float(np.sum(np.square(diag.residuals["calibrated"][p["id"]]))))
+    figs.append(overlay_figure(diag, worst["id"]))
+    for i, f in enumerate(figs):
+        parts.append(f.to_html(full_html=False, include_plotlyjs="cdn" if i == 0 else False))
+    return "<!doctype html><html><head><meta charset='utf-8'><title>dampersim discrepancy</title></head><body>" + "\n".join(parts) + "</body></html>"
+
+
+__all__ = ["gap_figure", "residual_map_figure", "order_residual_figure", "ranking_figure", "overlay_figure", "report_html"]

@@ -1,0 +1,199 @@
+"""Shared helpers of the chapter 7 studies: cached MR sweeps and cached single runs."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+
+import numpy as np
+
+from dampersim.errors import InputError
+from dampersim.sweeps.grid import TestPoint
+from dampersim.units import rpm_to_rad_s
+
+#: Speeds [rpm] over which the thesis validated the model (rig limit 3000 rpm, §7.1.3).
+VALIDATED_RPM = (500.0, 3000.0)
+
+
+class Progress:
+    """Counts work across the several sweeps of one study and reports it as
+    ``progress(done, total, from_cache)`` to the caller's callback."""
+
+    def __init__(self, callback, total):
+        self.callback = callback
+        self.total = int(total)
+        self.done = 0
+        self.cached = 0
+        self.computed = 0
+        self.warnings = []
+
+    def sweep_callback(self):
+        base_done, base_cached = self.done, self.cached
+
+        def cb(done, total, from_cache):
+            self._report(base_done + done, base_cached + from_cache)
+
+        return cb
+
+    def _report(self, done, cached):
+        if self.callback is not None:
+            self.callback(min(done, self.total), self.total, cached)
+
+    def add(self, n, from_cache=0):
+        self.done += n
+        self.cached += from_cache
+        self.computed += n - from_cache
+        self._report(self.done, self.cached)
+
+
+def point(rpm, mean_torque, orders) -> TestPoint:
+    return TestPoint(rpm_to_rad_s(rpm), float(mean_torque), tuple(orders))
+
+
+def warn_speeds(rpms, prog: Progress):
+    hi = [r for r in rpms if r > VALIDATED_RPM[1] + 1e-9]
+    if hi:
+        prog.warnings.append(
+            f"{len(hi)} test points above {VALIDATED_RPM[1]:g} rpm (up to {max(hi):g} rpm): the thesis never "
+            "validated the model there (its rig stopped at 3000 rpm)"
+        )
+
+
+def mr_sweep(system, points, prog: Progress, executor, cancel=None, orders=None):
+    """run_sweep over ``points`` (cached); returns its table."""
+    from dampersim.sweeps.executor import run_sweep
+
+    kw = {}
+    if orders is not None:
+        kw["orders"] = orders
+    res = run_sweep(system, points, executor=executor, progress=prog.sweep_callback(), cancel=cancel, **kw)
+    prog.add(res.n_points, res.from_cache)
+    return res.table
+
+
+def mr_of(table, idx, order) -> float:
+    """Magnification of ``order`` at test point ``idx`` of a sweep table (NaN if absent)."""
+    sel = table[(table["point"] == idx) & np.isclose(table["order"], order)]
+    return float(sel["magnification"].iloc[0]) if len(sel) else float("nan")
+
+
+def amp_of(table, idx, order, which="output") -> float:
+    sel = table[(table["point"] == idx) & np.isclose(table["order"], order)]
+    return float(sel[f"{which}_amplitude_nm"].iloc[0]) if len(sel) else float("nan")
+
+
+def pct(a, b) -> float:
+    """100 (a - b) / b."""
+    return float(100.0 * (a - b) / b) if (b and math.isfinite(a) and math.isfinite(b)) else float("nan")
+
+
+# ----------------------------------------------------------------- cached single runs
+def _store():
+    import diskcache
+
+    from dampersim.sweeps.cache import cache_dir
+
+    return diskcache.Cache(str(cache_dir() / "studies"))
+
+
+def run_key(tag, system, excitation, duration) -> str:
+    from dampersim.sweeps.cache import cache_key
+
+    base = cache_key(system, excitation, duration)
+    return hashlib.sha256(f"{tag}:{base}".encode()).hexdigest()
+
+
+def cached_runs(tag, fn, jobs, prog: Progress, parallel: bool, cancel=None):
+    """Evaluate ``fn(system, excitation, duration)`` -> JSON-able dict for each job
+    ``(system, excitation, duration)``, from the study cache when present; in a process
+    pool when ``parallel``."""
+    keys = [run_key(tag, *j) for j in jobs]
+    out = [None] * len(jobs)
+    todo = []
+    with _store() as store:
+        for i, k in enumerate(keys):
+            v = store.get(k)
+            if v is not None:
+                out[i] = json.loads(v)
+            else:
+                todo.append(i)
+    prog.add(len(jobs) - len(todo), len(jobs) - len(todo))
+
+    def save(i, value):
+        with _store() as store:
+            store.set(keys[i], json.dumps(value))
+        out[i] = value
+        prog.add(1)
+
+    if todo and parallel and len(todo) > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        from dampersim.sweeps.executor import _cpu_count, _pool_initializer
+
+        with ProcessPoolExecutor(max_workers=min(_cpu_count(), len(todo)), initializer=_pool_initializer) as pool:
+            futs = {pool.submit(fn, *jobs[i]): i for i in todo}
+            for f in futs:
+                if _cancelled(cancel):
+                    for g in futs:
+                        g.cancel()
+                    from dampersim.sweeps.executor import SweepCancelled
+
+                    raise SweepCancelled(prog.done, prog.total)
+                save(futs[f], f.result())
+    else:
+        for i in todo:
+            if _cancelled(cancel):
+                from dampersim.sweeps.executor import SweepCancelled
+
+                raise SweepCancelled(prog.done, prog.total)
+            save(i, fn(*jobs[i]))
+    return out
+
+
+def _cancelled(cancel) -> bool:
+    if cancel is None:
+        return False
+    if hasattr(cancel, "is_set"):
+        return cancel.is_set()
+    return bool(cancel())
+
+
+def finish(name, params, results, checks, thesis, prog: Progress, t0, quick):
+    return {
+        "study": name,
+        "quick": bool(quick),
+        "params": params,
+        "results": results,
+        "checks": checks,
+        "thesis": thesis,
+        "warnings": prog.warnings,
+        "points": prog.total,
+        "computed": prog.computed,
+        "from_cache": prog.cached,
+        "wall_time_s": time.perf_counter() - t0,
+    }
+
+
+def jsonable(obj):
+    """Replace NaN/inf by None, numpy scalars by Python ones (strict JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    return obj
+
+
+def check_executor(executor):
+    if executor not in ("processes", "serial"):
+        raise InputError(f"executor {executor!r}: accepted is 'processes' or 'serial'")
