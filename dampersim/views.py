@@ -1366,12 +1366,42 @@ def maps_view(system, state: dict, progress=None, cancel=None, cache_only: bool 
 
 
 # =============================================================================== hysteresis
+_LOOP_ARRAYS = ("time_s", "torque_nm", "windup_rad", "windup_outer_rad", "windup_inner_rad", "output_torque_nm")
+
+
+def _loop_key(system, state, rpm) -> str:
+    """Key of one simulated loop: only what the simulation depends on (display options such
+    as the windup shown or the low pass are applied afterwards)."""
+    return view_key("hysteresis-loop", system, {"protocol": state["protocol"], "speed_rpm": float(rpm),
+                                                "rate": float(state["rate"]), "hold": float(state["hold"])})
+
+
+def _load_loop(key):
+    from dampersim.analysis.hysteresis import HysteresisLoop
+
+    data = load_view(key)
+    if data is None or "loop" not in data:
+        return None
+    d = data["loop"]
+    return HysteresisLoop(speed_rad_s=d["speed_rad_s"], protocol=d["protocol"], label=d["label"],
+                          **{k: (np.asarray(d[k]) if d[k] is not None else None) for k in _LOOP_ARRAYS})
+
+
+def _save_loop(key, loop):
+    d = {k: getattr(loop, k) for k in _LOOP_ARRAYS}
+    d.update(speed_rad_s=float(loop.speed_rad_s), protocol=loop.protocol, label=loop.label)
+    _save_view(key, {"kind": "hysteresis-loop", "loop": d})
+
+
 def hysteresis_view(system, state: dict, progress=None, cancel=None, cache_only: bool = False):
     """Torque-ramp protocol at each speed -> hysteresis loops, dynamic stiffness along the
     loading branch and energy per loop ([thesis] §6.3.2, §7.3.1).
 
-    state: from :func:`parse_query` ("hysteresis"). ``progress(done, total, 0)`` after
-    each speed; ``cancel()`` returning True stops between speeds (InputError).
+    state: from :func:`parse_query` ("hysteresis"). Each speed's loop is cached on its own
+    (protocol, speed, rate, hold), so display options (windup shown, low pass) and added
+    speeds reuse the loops already simulated. ``progress(done, total, from_cache)`` after
+    each speed; ``cancel()`` returning True stops between speeds (InputError);
+    ``cache_only``: return None unless every loop is cached.
     """
     import plotly.graph_objects as go
 
@@ -1381,23 +1411,36 @@ def hysteresis_view(system, state: dict, progress=None, cancel=None, cache_only:
 
     key = view_key("hysteresis", system, state)
     hit = load_view(key)
-    if hit is not None or cache_only:
+    if hit is not None:
         return hit
     t0 = time.perf_counter()
     speeds_rpm = parse_values(state["speeds"], option="speeds", unit="rpm")
+    keys = [_loop_key(system, state, rpm) for rpm in speeds_rpm]
+    cached = {k: _load_loop(k) for k in keys}
+    cached = {k: v for k, v in cached.items() if v is not None}
+    if cache_only and len(cached) < len(set(keys)):
+        return None
     loops, analyses = [], []
+    n_cached = sum(k in cached for k in keys)
     if progress:
-        progress(0, len(speeds_rpm), 0)
-    for i, rpm in enumerate(speeds_rpm):
-        if cancel is not None and (cancel() if callable(cancel) else cancel.is_set()):
-            raise InputError(f"hysteresis run cancelled after {i} of {len(speeds_rpm)} speeds")
-        lp, = run_loops(system, state["protocol"], [rpm_to_rad_s(rpm)], rate=float(state["rate"]),
-                        hold=float(state["hold"]), lowpass=bool(state["lowpass"]))
-        lp = dataclasses.replace(lp, result=None)
+        progress(n_cached, len(speeds_rpm), n_cached)
+    done = n_cached
+    for i, (rpm, k) in enumerate(zip(speeds_rpm, keys)):
+        lp = cached.get(k)
+        if lp is None:
+            if cancel is not None and (cancel() if callable(cancel) else cancel.is_set()):
+                raise InputError(f"hysteresis run cancelled after {done} of {len(speeds_rpm)} speeds; the finished loops are cached")
+            lp, = run_loops(system, state["protocol"], [rpm_to_rad_s(rpm)], rate=float(state["rate"]), hold=float(state["hold"]))
+            lp = dataclasses.replace(lp, result=None)
+            _save_loop(k, lp)
+            cached[k] = lp
+            done += 1
+            if progress:
+                progress(done, len(speeds_rpm), n_cached)
+        if state["lowpass"]:
+            lp = lp.filtered()
         loops.append(lp)
         analyses.append(analyse_loop(lp, system))
-        if progress:
-            progress(i + 1, len(speeds_rpm), 0)
     which = state["windup"]
     knees = [a.knee for a in analyses] if which == "total" else None
     loops_fig = hysteresis_figure(loops, windup=which, knees=knees,
@@ -1610,7 +1653,18 @@ def segments_view(system, state: dict, use_cache: bool = True) -> dict:
             return hit
     t0 = time.perf_counter()
     ex = _excitation(state)
-    res = simulate(system, ex, duration=float(state["duration"]), record_segments=True)
+    # the simulation is cached apart from the display options (spring, windows, gain)
+    sim_key = view_key("segments-simulation", system, {k: state[k] for k in ("speed", "torque", "orders", "duration")})
+    try:
+        res = view_store().get(sim_key, default=None, retry=True) if use_cache else None
+    except Exception:
+        res = None
+    if res is None or not hasattr(res, "nodes"):
+        res = simulate(system, ex, duration=float(state["duration"]), record_segments=True)
+        try:
+            view_store().set(sim_key, res, retry=True)
+        except Exception:
+            pass
     names = [s.name for s in res.springs]
     spring = state["spring"] if state["spring"] in names else names[0]
     k0 = int(np.searchsorted(res.segment_t, res.segment_t[-1] - float(state["window"]) - 1e-12))

@@ -1,0 +1,1 @@
+"""Dashboard pages: one module per view (layout and callbacks only)."""

@@ -1,0 +1,178 @@
+"""Colourmap: a speed sweep -> FFT colourmaps of input and output torque with order lines,
+and order cuts with the input for context ([thesis] §6.3.1).
+
+URL keys: ``speeds`` (rpm, "900:2800:50" or "1200,1500"), ``torque`` [N m], ``orders``,
+``duration`` [s], ``window`` [s], ``fmax`` [Hz], ``db`` (true/false), ``cuts`` ("2,4"),
+plus dotted parameter names. The sweep runs in the background with progress and cancel;
+finished test points are cached, so a repeated or continued sweep is fast.
+"""
+
+from __future__ import annotations
+
+import time
+
+import dash
+from dash import Input, Output, dcc, html
+
+from dampersim import views
+from dampersim.errors import DampersimError
+from pages import _common as C
+
+PAGE = "colourmap"
+
+dash.register_page(__name__, path="/colourmap", name="Colourmap", title="Colourmap · dampersim", order=1)
+
+CUT_OPTIONS = [{"label": f" {k}", "value": str(k)} for k in range(1, 9)]
+
+
+def layout(**query):
+    state, notices = views.parse_query(PAGE, query)
+    autorun = any(f.key in query for f in views.PAGES[PAGE])
+    controls = [
+        C.section("Speed sweep", [
+            C.control("Speeds", C.text("colourmap-speeds", state["speeds"], "900:2800:50"), "rpm",
+                      hint="START:STOP:STEP (inclusive) or a list. The thesis steps 10 rpm (191 points); 50 rpm gives a quick overview.",
+                      cid="colourmap-speeds"),
+            C.control("Mean torque", C.number("colourmap-torque", state["torque"]), "N m", cid="colourmap-torque"),
+        ]),
+        C.section("Excitation orders", [C.order_rows(PAGE, state["orders"])]),
+        C.section("Record", [
+            C.control("Simulated time per point", C.number("colourmap-duration", state["duration"]), "s", cid="colourmap-duration",
+                      hint="2.6 s as the thesis. A quick sweep: 1.2 s with a 0.6 s window, about half the time, "
+                           "but less time to settle and 1.7 Hz frequency resolution."),
+            C.control("Analysis window", C.number("colourmap-window", state["window"]), "s", cid="colourmap-window",
+                      hint="The end of each record; 1.25 s as the thesis (0.8 Hz resolution)."),
+        ], open_=False),
+        C.section("Display", [
+            C.control("Top frequency", C.number("colourmap-fmax", state["fmax"]), "Hz", cid="colourmap-fmax"),
+            dcc.Checklist(id="colourmap-db", options=[{"label": " colour in dB re 1 N m", "value": "db"}],
+                          value=["db"] if state["db"] else [], className="checks"),
+            C.control("Order cuts", dcc.Checklist(id="colourmap-cuts", options=CUT_OPTIONS,
+                                                  value=[c for c in state["cuts"].split(",") if c in {o["value"] for o in CUT_OPTIONS}],
+                                                  inline=True, className="checks")),
+        ]),
+        C.run_panel(PAGE, "Run sweep"),
+    ]
+    content = [
+        html.Div(id="colourmap-run-notices", className="notices"),
+        html.Div(id="colourmap-job-notices", className="notices"),
+        html.Div(id="colourmap-summary"),
+        html.Div([
+            C.card(None, C.graph("colourmap-graph", 480, "No sweep shown yet: press Run sweep"), wide=True),
+            C.card(None, [C.graph("colourmap-cuts-graph", 650, "No sweep shown yet"),
+                                                             html.Div(id="colourmap-cuts-table")], wide=True),
+        ], className="cards"),
+    ]
+    return C.page_frame(PAGE, "Colourmap", "Speed sweep at one mean torque: amplitude over speed and frequency of the input and "
+                        "output torque, engine orders as lines, and the order amplitudes along them.",
+                        controls, content, notices, C.background_stores(PAGE, state["params"], autorun))
+
+
+C.register_link_callbacks(PAGE)
+
+CONTROL_INPUTS = [
+    Input("colourmap-speeds", "value"),
+    Input("colourmap-torque", "value"),
+    *C.order_inputs(PAGE),
+    Input("colourmap-duration", "value"),
+    Input("colourmap-window", "value"),
+    Input("colourmap-fmax", "value"),
+    Input("colourmap-db", "value"),
+    Input("colourmap-cuts", "value"),
+]
+
+
+def state_from_values(values, base_params):
+    """Controls -> (state, system, notices)."""
+    speeds, torque, ks, amps, phases, duration, window, fmax, db, cuts = values
+    orders_text, notices = C.orders_text_from_rows(ks, amps, phases)
+    cuts_text = ",".join(sorted(cuts or [], key=float)) or None
+    if cuts is not None and not cuts:
+        notices.append(views.notice("No order cut selected; showing the excited orders."))
+        cuts_text = ",".join(f"{k:g}" for k, a, _ in views.parse_orders_deg(orders_text or "2:300") if k <= 8 and (2 * k).is_integer()) or "2"
+    state, more = views.state_from_controls(PAGE, {"speeds": speeds, "torque": torque, "orders": orders_text, "duration": duration,
+                                                   "window": window, "fmax": fmax, "db": bool(db), "cuts": cuts_text}, base_params)
+    system = views.resolve_system(state["params"], more)
+    return state, system, notices + more
+
+
+def request(run, initial, values, base_params, autorun):
+    """Foreground part: validate, mirror into the URL, show a cached view at once, or
+    start the sweep (Run, or opening a shared link)."""
+    state, system, notices = state_from_values(values, base_params)
+    out = {"search": views.to_query(PAGE, state), "params": state["params"], "notices": notices}
+    try:
+        view = views.colourmap_view(system, state, cache_only=True)
+        st = views.colourmap_status(system, state)
+    except DampersimError as exc:
+        out["notices"] = notices + [views.notice(f"This sweep cannot run: {exc}", "error")]
+        out["status"] = "Not started."
+        return out
+    if view is not None:
+        out["hit"] = {"key": view["key"], "from": "cache"}
+        out["status"] = "Loading from the cache…"
+        return out
+    missing = st["total"] - st["cached"]
+    if run or (initial and autorun):
+        out["job"] = {"state": state}
+        out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
+        return out
+    est = C.estimate_seconds(missing, state["duration"])
+    out["status"] = C.render_notices([views.notice(
+        f"Not computed yet: {st['total']} test points ({st['cached']} already in the cache), about {est:.0f} s. Press Run sweep.", "info")])
+    return out
+
+
+def job(job_data, progress):
+    """Background part: run the sweep with progress; a cancelled job is killed by Dash (the
+    finished points are in the cache already)."""
+    from dampersim.sweeps.executor import SweepCancelled
+
+    state = job_data["state"]
+    system = views.resolve_system(state["params"])
+    reg = views.SweepRegistry()
+    t0 = time.monotonic()
+    try:
+        total = len(views._sweep_points(state["speeds"], [float(state["torque"])], state["orders"]))
+        reg.start(PAGE, total)
+        progress(0, total, f"0 / {total} test points · starting worker processes…")
+
+        def on_progress(done, total, cached):
+            reg.beat()
+            progress(done, total, C.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
+
+        view = views.colourmap_view(system, state, progress=on_progress)
+        return {"key": view["key"]}
+    except SweepCancelled as exc:
+        return {"error": str(exc)}
+    except DampersimError as exc:
+        return {"error": str(exc)}
+    except Exception as exc:  # keep the server's page alive with a specific message
+        return {"error": f"unexpected {type(exc).__name__}: {exc}"}
+    finally:
+        reg.stop()
+
+
+def render(view):
+    s = view["summary"]
+    cards = C.summary_cards(
+        [(f"Order {r['order']:g}", f"MR ≤ {C.fmt(r['max_mr'], 3)}", f"max at {C.fmt(r['at_rpm'], 4, 'rpm')}") for r in view["cuts"]]
+        + [("Sweep", f"{s['points']} points", f"{s['sweep_time_s']:.1f} s, {s['computed']} computed, {s['from_cache']} cached")]
+    )
+    rows = [{"order": f"{r['order']:g}", "max": C.fmt(r["max_mr"], 4), "at": C.fmt(r["at_rpm"], 5), "mean": C.fmt(r["mean_mr"], 4)}
+            for r in view["cuts"]]
+    tab = C.table([("order", "Order"), ("max", "Largest MR [-]"), ("at", "at speed [rpm]"), ("mean", "Mean MR [-]")], rows,
+                  cid="colourmap-mr-table")
+    return view["figures"]["colourmap"], view["figures"]["cuts"], tab, cards
+
+
+SHOW_OUTPUTS = [Output("colourmap-graph", "figure"), Output("colourmap-cuts-graph", "figure"),
+                Output("colourmap-cuts-table", "children"), Output("colourmap-summary", "children")]
+
+
+def show(data):
+    return C.show_view(data, render, len(SHOW_OUTPUTS), "colourmaps")
+
+
+callbacks = C.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
+                                  show_outputs=SHOW_OUTPUTS)

@@ -1,0 +1,126 @@
+"""Segments: how the arc-spring segments move -- compression of each segment over time and
+an animated drawing of the damper from the simulated states ([thesis] §7.3, Fig. 7.24-7.25).
+
+URL keys: ``speed`` [rpm], ``torque`` [N m], ``orders``, ``duration`` [s], ``spring``
+(outer / pair_outer / pair_inner), ``span`` [s] (animated end of the record), ``gain``
+(motion exaggeration about the mean), plus dotted parameter names.
+"""
+
+from __future__ import annotations
+
+import dash
+from dash import Input, Output, State, callback, dcc, html, no_update
+
+from dampersim import views
+from dampersim.errors import DampersimError
+from pages import _common as C
+
+PAGE = "segments"
+
+dash.register_page(__name__, path="/segments", name="Segments", title="Segments · dampersim", order=3)
+
+SPRINGS = [{"label": " outer arc spring", "value": "outer"}, {"label": " nested pair, outer", "value": "pair_outer"},
+           {"label": " nested pair, inner", "value": "pair_inner"}]
+
+
+def layout(**query):
+    state, notices = views.parse_query(PAGE, query)
+    controls = [
+        C.section("Test point", [
+            C.control("Speed", C.slider("segments-speed", state["speed"], 300, 6000, 10,
+                                        {300: "300", 1500: "1500", 3000: "3000", 4500: "4500", 6000: "6000"}), "rpm", cid="segments-speed"),
+            C.control("Mean torque", C.slider("segments-torque", state["torque"], -500, 1000, 5,
+                                              {-500: "-500", 0: "0", 300: "300", 600: "600", 1000: "1000"}), "N m", cid="segments-torque"),
+            C.control("Simulated time", C.number("segments-duration", state["duration"]), "s", cid="segments-duration"),
+        ]),
+        C.section("Excitation orders", [C.order_rows(PAGE, state["orders"])]),
+        C.section("Display", [
+            C.control("Spring in the heatmap", dcc.RadioItems(id="segments-spring", options=SPRINGS, value=state["spring"], className="radios")),
+            C.control("Heatmap window", C.number("segments-window", state["window"]), "s", cid="segments-window",
+                      hint="The end of the record shown in the heatmap; the simulated time shows it all."),
+            C.control("Animated span", C.number("segments-span", state["span"]), "s", cid="segments-span",
+                      hint="The end of the record, drawn at the 1 kHz segment sample rate."),
+            C.control("Motion exaggeration", C.number("segments-gain", state["gain"]), "×", cid="segments-gain",
+                      hint="Oscillation about the mean position drawn enlarged; 1 = true angles."),
+        ]),
+        html.Div(dcc.Link("Segment counts and parameters: Explorer / Parameters", href=views.page_href("parameters", state["params"]),
+                          id="segments-params-link"), className="side-link"),
+    ]
+    content = [
+        html.Div(id="segments-run-notices", className="notices"),
+        html.Div(id="segments-kpis"),
+        html.Div([
+            C.card(None, C.graph("segments-animation", 600, "Computing…"), wide=True),
+            C.card(None, C.graph("segments-heatmap", 440, "Computing…")),
+            C.card("Compression per segment (steady part of the record)", html.Div(id="segments-table")),
+        ], className="cards"),
+        dcc.Store(id="segments-base-params", data=state["params"]),
+        dcc.Store(id="segments-last-good"),
+    ]
+    return C.page_frame(PAGE, "Segment motion", "Compression of every segment over time, and the damper drawn from the simulated "
+                        "node positions: the springs' end segments move first, the middle ones late.", controls, content, notices)
+
+
+C.register_link_callbacks(PAGE)
+
+
+def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params):
+    """State, view and notices for the current controls (plain function, testable)."""
+    orders_text, notices = C.orders_text_from_rows(ks, amps, phases)
+    state, more = views.state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
+                                                   "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
+    notices += more
+    system = views.resolve_system(state["params"], notices)
+    try:
+        view = views.segments_view(system, state)
+    except DampersimError as exc:
+        notices.append(views.notice(f"The test point could not be simulated: {exc}. The previous results are kept.", "error"))
+        return {"view": None, "state": state, "notices": notices, "error": str(exc)}
+    return {"view": view, "state": state, "notices": notices, "error": None}
+
+
+def _table(rows):
+    data = [{"seg": r["segment"], "mean": C.fmt(r["mean_deg"], 3), "amp": C.fmt(r["amplitude_deg"], 3), "max": C.fmt(r["max_deg"], 3)}
+            for r in rows]
+    return C.table([("seg", "Segment"), ("mean", "Mean compression [deg]"), ("amp", "Oscillation amplitude [deg]"),
+                    ("max", "Largest compression [deg]")], data, cid="segments-seg-table")
+
+
+@callback(
+    Output("segments-animation", "figure"),
+    Output("segments-heatmap", "figure"),
+    Output("segments-table", "children"),
+    Output("segments-kpis", "children"),
+    Output("segments-run-notices", "children"),
+    Output("segments-url", "search"),
+    Output("shared-params", "data", allow_duplicate=True),
+    Output("segments-last-good", "data"),
+    Input("segments-speed", "value"),
+    Input("segments-torque", "value"),
+    *C.order_inputs(PAGE),
+    Input("segments-duration", "value"),
+    Input("segments-spring", "value"),
+    Input("segments-window", "value"),
+    Input("segments-span", "value"),
+    Input("segments-gain", "value"),
+    State("segments-base-params", "data"),
+    State("segments-last-good", "data"),
+    prevent_initial_call="initial_duplicate",
+)
+def update_segments(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params, last_good):
+    out = segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params)
+    notices = C.render_notices(out["notices"])
+    if out["error"]:
+        figs = [no_update, no_update] if last_good else [C.empty_figure("No result: see the message above")] * 2
+        return (*figs, no_update, no_update, notices, no_update, no_update, no_update)
+    view = out["view"]
+    s = view["summary"]
+    kpis = C.summary_cards([
+        ("Spring", s["spring"].replace("_", " "), f"{s['segments']} segments"),
+        ("End vs middle", f"{s['end_to_middle_amplitude']:.2g} ×", "oscillation of the end segments / median segment"),
+        ("Frames", f"{s['frames']}", "segment states at 1 kHz"),
+        ("Run", "from cache" if view.get("from_cache") else f"computed in {s['compute_time_s']:.2f} s", None),
+    ])
+    state = out["state"]
+    return (view["figures"]["animation"], view["figures"]["heatmap"], _table(view["segments"]), kpis, notices,
+            views.to_query(PAGE, state), state["params"], view["key"])

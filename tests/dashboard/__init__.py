@@ -1,0 +1,1 @@
+"""Dashboard tests without a browser (views, callbacks, HTTP)."""
