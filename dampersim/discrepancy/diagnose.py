@@ -87,18 +87,10 @@ def _rms(x) -> float:
 
 def calibrated_system(system, x: np.ndarray):
     """``system`` with the calibration factors exp(x) applied."""
-    from dampersim.parameters import to_dict, with_updates
+    from dampersim.parameters import with_updates
+    from dampersim.parameters.io import flat_values
 
-    flat = {}
-
-    def walk(d, pre):
-        for k, v in d.items():
-            if isinstance(v, dict):
-                walk(v, f"{pre}{k}.")
-            else:
-                flat[f"{pre}{k}"] = v
-
-    walk(to_dict(system), "")
+    flat = flat_values(system)
     upd = {}
     for xi, names in zip(x, CALIBRATION.values()):
         for n in names:

@@ -106,20 +106,12 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
     """The truth model: ``base`` with estimated parameters scaled by 1 + U(-perturb, perturb),
     explicit ``updates`` (dotted name -> value), hidden ``effects`` [(name, values)] and, with
     ``fine``, finer springs and a smaller step. Returns (system, applied dotted values)."""
-    from dampersim.parameters import to_dict, with_updates
+    from dampersim.parameters import with_updates
+    from dampersim.parameters.io import flat_values
 
     rng = rng or np.random.default_rng(0)
     applied = {}
-    flat = {}
-
-    def walk(d, pre):
-        for k, v in d.items():
-            if isinstance(v, dict):
-                walk(v, f"{pre}{k}.")
-            else:
-                flat[f"{pre}{k}"] = v
-
-    walk(to_dict(base), "")
+    flat = flat_values(base)
     for name in ESTIMATED:
         if name in flat and perturb > 0:
             applied[name] = float(flat[name]) * (1.0 + rng.uniform(-perturb, perturb))

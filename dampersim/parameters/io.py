@@ -180,6 +180,22 @@ def load_toml(path) -> m.DamperSystem:
     return loads_toml(text)
 
 
+def flat_values(system: m.DamperSystem) -> dict:
+    """{dotted name: value} of every scalar in ``system``'s dict form (rig elements stay
+    one list-valued entry, ``rig.elements``)."""
+    flat = {}
+
+    def walk(d, pre):
+        for k, v in d.items():
+            if isinstance(v, dict):
+                walk(v, f"{pre}{k}.")
+            else:
+                flat[f"{pre}{k}"] = v
+
+    walk(to_dict(system), "")
+    return flat
+
+
 def dotted_names(system: m.DamperSystem) -> list[str]:
     """Every settable dotted name of ``system`` (rig elements addressed by their name)."""
     names = []
@@ -260,6 +276,7 @@ __all__ = [
     "save_toml",
     "load_toml",
     "dotted_names",
+    "flat_values",
     "with_updates",
     "parse_set_options",
 ]

@@ -36,6 +36,7 @@ import pandas as pd
 
 import dampersim
 from dampersim.fileio import write_parquet_atomic
+from dampersim.analysis.colourmap import SWEEP_COLUMNS
 from dampersim.errors import DampersimError, InputError
 from dampersim.sweeps import cache as _cache
 from dampersim.sweeps.grid import TestPoint
@@ -54,17 +55,8 @@ DEFAULT_ORDERS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)
 #: largest input amplitude (an order that is not excited has no meaningful ratio).
 MIN_INPUT_REL = 1e-3
 
-TABLE_COLUMNS = (
-    "point",
-    "speed_rpm",
-    "speed_rad_s",
-    "mean_torque_nm",
-    "order",
-    "frequency_hz",
-    "input_amplitude_nm",
-    "output_amplitude_nm",
-    "magnification",
-)
+#: Columns of the sweep table: a point index, then the analysis package's sweep columns.
+TABLE_COLUMNS = ("point", *SWEEP_COLUMNS)
 
 
 class SweepCancelled(DampersimError):
