@@ -69,7 +69,9 @@ def cmd_simulate(args) -> int:
     # an order without input (below 0.1 % of the largest) has no meaningful ratio
     mr = magnification_ratio(a_in, a_out, min_input=max(1e-3 * float(np.max(a_in)), 1e-6))
     if args.out:
-        _write_parquet(res.to_frame(), args.out)
+        from dampersim.fileio import write_parquet_atomic
+
+        write_parquet_atomic(res.to_frame(), args.out)
     if args.json:
         print(
             json.dumps(
@@ -90,12 +92,6 @@ def cmd_simulate(args) -> int:
             print(f"{k:>5} {ai:12.3f} {ao:13.3f} {ms}")
         print(f"simulation wall time {res.wall_time:.3f} s")
     return 0
-
-
-def _write_parquet(frame, path):
-    from dampersim.fileio import write_parquet_atomic
-
-    write_parquet_atomic(frame, path)
 
 
 def cmd_modes(args) -> int:

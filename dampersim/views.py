@@ -332,35 +332,30 @@ def _parse_orders(f: Field, raw):
     return format_orders(parse_orders_deg(raw))
 
 
-def _parse_speeds(f: Field, raw):
+def _parse_value_list(f: Field, raw, unit: str, noun: str, sep: str, limit=None):
+    """A value, list or START:STOP:STEP range -> normalised text; every value within the
+    field's bounds and at most ``limit`` values."""
     from dampersim.sweeps.grid import parse_values
 
     text = re.sub(r"\s+", "", str(raw))
     try:
-        values = parse_values(text, option=f.key, unit="rpm")
+        values = parse_values(text, option=f.key, unit=unit)
     except InputError as exc:
         raise ValueError(str(exc)) from None
-    limit = f.choices[0] if f.choices else MAX_SWEEP_POINTS
-    if len(values) > limit:
-        raise ValueError(f"expands to {len(values)} speeds, at most {limit} are accepted")
+    if limit is not None and len(values) > limit:
+        raise ValueError(f"expands to {len(values)} {noun}, at most {limit} are accepted")
     bad = [v for v in values if not (f.lo <= v <= f.hi)]
     if bad:
-        raise ValueError(f"{_fmt(bad[0])} rpm is outside {_fmt(f.lo)}-{_fmt(f.hi)} rpm")
+        raise ValueError(f"{_fmt(bad[0])} {unit} is outside {_fmt(f.lo)}{sep}{_fmt(f.hi)} {unit}")
     return text
+
+
+def _parse_speeds(f: Field, raw):
+    return _parse_value_list(f, raw, "rpm", "speeds", "-", f.choices[0] if f.choices else MAX_SWEEP_POINTS)
 
 
 def _parse_torques(f: Field, raw):
-    from dampersim.sweeps.grid import parse_values
-
-    text = re.sub(r"\s+", "", str(raw))
-    try:
-        values = parse_values(text, option=f.key, unit="N m")
-    except InputError as exc:
-        raise ValueError(str(exc)) from None
-    bad = [v for v in values if not (f.lo <= v <= f.hi)]
-    if bad:
-        raise ValueError(f"{_fmt(bad[0])} N m is outside {_fmt(f.lo)} to {_fmt(f.hi)} N m")
-    return text
+    return _parse_value_list(f, raw, "N m", "torques", " to ")
 
 
 def _parse_order_list(f: Field, raw):
@@ -595,20 +590,6 @@ def parameter_query_items(params: dict | None) -> list:
     for name in sorted(params.get("overrides") or {}):
         items.append((name, _fmt(params["overrides"][name])))
     return items
-
-
-def params_from_values(system_base, values: dict) -> dict:
-    """Overrides {name: value} of ``values`` that differ from ``system_base`` (no validation)."""
-    out = {}
-    for name, v in values.items():
-        if v is None:
-            continue
-        try:
-            if _override_value(system_base, name) != v:
-                out[name] = v
-        except (ParameterError, StopIteration, KeyError):
-            continue
-    return out
 
 
 # =============================================================================== page state

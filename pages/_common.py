@@ -49,10 +49,6 @@ def render_notices(notices, heading: str | None = None):
     return out
 
 
-def error_notice(text: str):
-    return render_notices([views.notice(text, "error")])
-
-
 # --------------------------------------------------------------------------- page frame
 def page_frame(page: str, title: str, intro: str, controls, content, notices=(), extra=()):
     """Two-column page: a control panel (left) and the results (right).
@@ -354,6 +350,16 @@ def progress_text(done, total, cached, elapsed, others=0):
 
 
 # --------------------------------------------------------------------------- background work
+def background_header(page: str) -> list:
+    """The notices (from the request and from the job) and summary line above a
+    background page's results; the job callbacks below write into them."""
+    return [
+        html.Div(id=f"{page}-run-notices", className="notices"),
+        html.Div(id=f"{page}-job-notices", className="notices"),
+        html.Div(id=f"{page}-summary"),
+    ]
+
+
 def background_stores(page: str, params: dict, autorun: bool):
     """Stores of a page with background work: link parameters, autorun flag, the request
     of a job, its outcome and cache hits."""

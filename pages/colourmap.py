@@ -54,9 +54,7 @@ def layout(**query):
         C.run_panel(PAGE, "Run sweep"),
     ]
     content = [
-        html.Div(id="colourmap-run-notices", className="notices"),
-        html.Div(id="colourmap-job-notices", className="notices"),
-        html.Div(id="colourmap-summary"),
+        *C.background_header(PAGE),
         html.Div([
             C.card(None, C.graph("colourmap-graph", 480, "No sweep shown yet: press Run sweep"), wide=True),
             C.card(None, [C.graph("colourmap-cuts-graph", 650, "No sweep shown yet"),

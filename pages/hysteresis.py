@@ -53,9 +53,7 @@ def layout(**query):
         C.run_panel(PAGE, "Run ramps"),
     ]
     content = [
-        html.Div(id="hysteresis-run-notices", className="notices"),
-        html.Div(id="hysteresis-job-notices", className="notices"),
-        html.Div(id="hysteresis-summary"),
+        *C.background_header(PAGE),
         html.Div([
             C.card(None, C.graph("hysteresis-loops", 460, "No loops shown yet: press Run ramps"), wide=True),
             C.card(None, C.graph("hysteresis-stiffness", 380, "No loops shown yet")),

@@ -53,9 +53,7 @@ def layout(**query):
         C.run_panel(PAGE, "Run map"),
     ]
     content = [
-        html.Div(id="maps-run-notices", className="notices"),
-        html.Div(id="maps-job-notices", className="notices"),
-        html.Div(id="maps-summary"),
+        *C.background_header(PAGE),
         html.Div([
             C.card(None, C.graph("maps-map", 520, "No map shown yet: press Run map"), wide=True),
             C.card(None, C.graph("maps-curve", 340, "No map shown yet"), wide=True),

@@ -53,10 +53,6 @@ def measured_orders(point) -> np.ndarray:
     return order_amplitudes(point.output_torque, point.sample_rate_hz, point.speed, ORDERS)
 
 
-def measured_input_orders(point) -> np.ndarray:
-    return order_amplitudes(point.input_torque, point.sample_rate_hz, point.speed, ORDERS)
-
-
 def split_half_spread(point) -> np.ndarray:
     """Half the difference of the output order amplitudes of the two record halves [N m]:
     a repeatability estimate of one record's order amplitudes."""

@@ -195,6 +195,20 @@ def spring_nodes(q, P, SF, SI, X):
         X[base + n] = xn
 
 
+@njit(cache=True, inline="always")
+def hardstop_penetration(q, P, st):
+    """Windup of set ``st`` (0 outer, 1 inner) beyond its hardstop [rad]: positive past
+    the positive stop, negative past the negative stop, 0 in between."""
+    w = q[st] - q[st + 1]
+    lim_p = P[P_HSP_O] if st == 0 else P[P_HSP_I]
+    lim_n = P[P_HSN_O] if st == 0 else P[P_HSN_I]
+    if w > lim_p:
+        return w - lim_p
+    if w < lim_n:
+        return w - lim_n
+    return 0.0
+
+
 @njit(cache=True)
 def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
     """Torques on every DOF at state (q, v): conservative FC, dissipative FD, external FE
@@ -303,19 +317,8 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
         for st in range(2):
             a = st
             b = st + 1
-            w = q[a] - q[b]
             dw = v[a] - v[b]
-            if st == 0:
-                lim_p = P[P_HSP_O]
-                lim_n = P[P_HSN_O]
-            else:
-                lim_p = P[P_HSP_I]
-                lim_n = P[P_HSN_I]
-            pen = 0.0
-            if w > lim_p:
-                pen = w - lim_p
-            elif w < lim_n:
-                pen = w - lim_n
+            pen = hardstop_penetration(q, P, st)
             if pen != 0.0:
                 tk = k * pen
                 tt = tk + dmp * dw
@@ -583,7 +586,6 @@ def _stack_pair(q, v, J, da, db, delta, stats):
         v[da] = vm
         v[db] = vm
         stats[0] += ke0 - 0.5 * tot * vm * vm
-    stats[1] += 1.0
 
 
 @njit(cache=True)
@@ -599,14 +601,7 @@ def elastic_energy(q, P, SF, SI, RIG, X):
             e += 0.5 * SF[s, F_COUNT] * SF[s, F_KSEG] * c * c
     if P[P_HS_ON] > 0.0:
         for st in range(2):
-            w = q[st] - q[st + 1]
-            lim_p = P[P_HSP_O] if st == 0 else P[P_HSP_I]
-            lim_n = P[P_HSN_O] if st == 0 else P[P_HSN_I]
-            pen = 0.0
-            if w > lim_p:
-                pen = w - lim_p
-            elif w < lim_n:
-                pen = w - lim_n
+            pen = hardstop_penetration(q, P, st)
             e += 0.5 * P[P_HS_K] * pen * pen
     rig0 = int(P[P_RIG0])
     for e_ in range(int(P[P_NRIG])):
@@ -626,7 +621,7 @@ def stacking(q, v, P, SF, SI, J, X, stats):
     be shorter than its block arc. Gauss-Seidel sweeps over the segments until no
     segment is short by more than 1e-6 of its block arc (at most 4 N sweeps).
 
-    stats[0] accumulates kinetic energy removed by impulses [J], stats[1] counts contacts.
+    stats[0] accumulates kinetic energy removed by impulses [J].
     """
     for s in range(SF.shape[0]):
         a = SI[s, I_A]
@@ -696,7 +691,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     invj = 1.0 / J
     row = np.zeros(rec.shape[1])
     empty = np.zeros(0)
-    stats = np.zeros(2)
+    stats = np.zeros(1)
     z = 0.0
     e_in = 0.0
     e_motor = 0.0

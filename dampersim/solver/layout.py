@@ -26,7 +26,6 @@ measured against the rotation from the centre of A's stopper. B's stopper sits a
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -314,12 +313,3 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
             x = x0 + i * length / n
             q[irow[I_OFF] + i - 1] = q[int(irow[I_A])] - x
     return q, v
-
-
-def slot_limits(row) -> tuple[float, float]:
-    """(lowest, highest) slot coordinate at zero windup [rad] for a spring table row."""
-    lo = max(row[F_PHIPS], row[F_PHISS])
-    return lo, row[F_PITCH] - lo
-
-
-_ = math

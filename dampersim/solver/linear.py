@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dampersim.parameters.model import DamperSystem
-from dampersim.solver.layout import F_COUNT, F_KSEG, I_A, I_N, I_OFF, P_MOTOR, P_PA_C, P_PA_DOF, P_PA_K, P_RIG0, P_SS_K, P_TD_C, build_layout
+from dampersim.solver.layout import F_COUNT, F_KSEG, I_A, I_N, I_OFF, P_MOTOR, P_PA_C, P_PA_DOF, P_PA_K, P_RIG0, P_TD_C, build_layout
 
 
 @dataclass(frozen=True)
@@ -125,7 +125,6 @@ def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: flo
             mat[d, d] += val
             mat[p, d] -= val
             mat[d, p] -= val
-    _ = P_SS_K
     if hardstop_stiffness > 0:
         for a in (0, 1):
             K[a, a] += hardstop_stiffness
