@@ -1,0 +1,83 @@
+"""Accuracy figures of the simulation core, printed (the physics tests only assert them).
+
+Energy balance at the default point, frictionless forced response against the exported
+M, C, K, the static curve, convergence in time step and segment count, and speed
+stiffening of the outer set.
+
+    python bench/bench_accuracy.py      # about 1 min on 2 cores
+"""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+
+import numpy as np
+
+import dampersim as ds
+from dampersim.excitation import TorqueRamp
+from dampersim.parameters import with_updates
+from dampersim.solver.linear import linearise
+from dampersim.units import rpm_to_rad_s
+
+P = ds.default_parameters()
+
+
+def order2(system, rpm):
+    ex = ds.OrderSum(speed=rpm_to_rad_s(rpm), mean_torque=200.0, orders=((2, 300.0, 0.0),))
+    return ds.simulate(system, ex, record_segments=False).order_amplitudes()[1][1]
+
+
+def main():
+    ex = ds.OrderSum(speed=rpm_to_rad_s(1500), mean_torque=200.0, orders=((2, 300.0, 0.0), (4, 100.0, 0.0)))
+    res = ds.simulate(P, ex, record_segments=False)
+    e = res.energy
+    losses = e["friction"][-1] + e["damping"][-1] + e["stacking"][-1]
+    print(f"energy: residual {res.energy_residual()[-1]:.4f} J against {losses:.1f} J of losses "
+          f"({e['friction'][-1]:.1f} J friction), input work {e['input_work'][-1]:.0f} J")
+
+    lin_sys = with_updates(P, {"friction.enabled": False, "hardstops.enabled": False, "motor.mode": "held"})
+    lm = linearise(lin_sys, motor="held")
+    errs = []
+    for f in (15.0, 40.0, 80.0, 150.0, 220.0, 300.0):
+        k = f / 25.0
+        r = ds.simulate(lin_sys, ds.OrderSum(speed=rpm_to_rad_s(1500), mean_torque=100.0, orders=((k, 10.0, 0.0),)),
+                        record_segments=False)
+        a_in, a_out = r.order_amplitudes(orders=(k,))
+        errs.append((f, 100 * (a_out[0] / a_in[0] / abs(lm.output_torque_response(2 * np.pi * f)) - 1)))
+    print("linear limit, MR error vs M/C/K [%]: " + ", ".join(f"{f:g} Hz {x:+.3f}" for f, x in errs))
+
+    st = with_updates(P, {"friction.enabled": False, "motor.mode": "held", "solver.output_sample_rate": 2000})
+    r = ds.simulate(st, TorqueRamp(speed=rpm_to_rad_s(500), points=(0.0, 600.0), rate=50.0, hold=0.0, lead=0.2),
+                    record_segments=False)
+    t, w = r.input_torque, r.windup_outer + r.windup_inner
+    k_o = P.outer.count * P.outer.spring.stiffness
+    k_i = P.inner.count * (P.inner.spring.stiffness + P.inner.nested.stiffness)
+    m = (t > 50) & (t < 250)
+    m2 = (t > 350) & (t < 580)
+    print(f"static curve: series {1 / np.polyfit(t[m], w[m], 1)[0]:.2f} (expected {1 / (1 / k_o + 1 / k_i):.2f}) N m/rad, "
+          f"knee {t[np.argmax(r.hardstop_outer > 0)]:.2f} (expected {k_o * P.outer.hardstop_positive:.2f}) N m, "
+          f"above knee {1 / np.polyfit(t[m2], w[m2], 1)[0]:.1f} (expected {k_i:.1f}) N m/rad")
+
+    dt = P.solver.time_step
+    for rpm in (1500, 2500):
+        a = order2(P, rpm)
+        b = order2(with_updates(P, {"solver.time_step": dt / 2}), rpm)
+        c = order2(with_updates(P, {"solver.outer_segments": 32, "solver.inner_segments": 12}), rpm)
+        print(f"convergence at {rpm} rpm, 2nd order {a:.4f} N m: halved step {100 * (b / a - 1):+.2f} %, "
+              f"32/12 segments {100 * (c / a - 1):+.2f} %")
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # the stiffness probe of the tests
+    from tests.physics.test_speed_stiffening import _run
+
+    k5a, ang5a, comp_a = _run(500, 20.0)
+    k5b, ang5b, comp_b = _run(3000, 50.0)
+    k30a, ang30a, _ = _run(500, 100.0)
+    k30b, ang30b, _ = _run(3000, 100.0)
+    print(f"speed stiffening 500 -> 3000 rpm: x{k5b / k5a:.2f} at {ang5a:.1f}/{ang5b:.1f} deg, "
+          f"x{k30b / k30a:.2f} at {ang30a:.1f}/{ang30b:.1f} deg; compression share of the 5 secondary-end "
+          f"segments {comp_a[:5].sum() / comp_a.sum():.3f} -> {comp_b[:5].sum() / comp_b.sum():.3f}")
+
+
+if __name__ == "__main__":
+    main()
