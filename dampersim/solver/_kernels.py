@@ -210,9 +210,13 @@ def hardstop_penetration(q, P, st):
 
 
 @njit(cache=True)
-def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
+def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_damp):
     """Torques on every DOF at state (q, v): conservative FC, dissipative FD, external FE
     (input and motor), and the normal force FN [N] on every spring mass (count springs).
+
+    hs_damp: 1.0 puts the hardstop contact damping into FD (explicit right-hand side);
+    0.0 leaves it out for the integrator, which applies it implicitly
+    (:func:`hardstop_damping_step`). The recorded hardstop torque includes it either way.
 
     Fills ``rec`` (if its length is > 0) with the measured quantities of this state, and
     sets flags[0] to 1 if a segment is shorter than its block arc (coil stacking).
@@ -327,8 +331,9 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags):
                 energy += 0.5 * k * pen * pen
                 FC[a] -= tk
                 FC[b] += tk
-                FD[a] -= tt - tk
-                FD[b] += tt - tk
+                if hs_damp > 0.0:
+                    FD[a] -= tt - tk
+                    FD[b] += tt - tk
                 if st == 0:
                     hs0 = tt
                 else:
@@ -416,7 +421,7 @@ def _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6):
 
 
 @njit(cache=True)
-def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W):
+def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
     """Friction impulses for one step, applied to v in place; returns dissipation [J].
 
     The linearised friction of every contact is solved implicitly together with the two
@@ -428,6 +433,13 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W):
     work of the friction torques on the end-of-step slips, the speeds that move the
     positions; measured so, the energy balance closes. W: scratch of length
     2 n_contacts + 2 n_singles + 6 n_pairs.
+
+    HS = (c0, f0, c1, f1) couples the hardstop contacts into the same solve: contact 0
+    (outer set, J_pri-J_sec) and 1 (inner set, J_sec-J_ter) pass the torque
+    c (w_end) + f, with w_end the end-of-step windup speed of the set; c = 0 and f = 0
+    when the contact is open (see :func:`hardstop_coefficients`). Solving them together
+    with friction keeps J_pri's inertia on J_sec while the outer hardstop is closed.
+    v[0] changes only when contact 0 is closed.
     """
     g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     nc = CI.shape[0]
@@ -512,9 +524,26 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W):
         a21 -= q2 * o1
         a22 += q2 * (1.0 - o2)
         r2 += p2 + q2 * o0
+    # hardstop contacts: inner couples J_sec and J_ter, outer brings in J_pri (eliminated)
+    c0 = HS[0]
+    f0 = HS[1]
+    c1 = HS[2]
+    f1 = HS[3]
+    a11 += c1
+    a12 -= c1
+    a21 -= c1
+    a22 += c1
+    r1 -= f1
+    r2 += f1
+    j0 = J[0] / dt
+    if c0 != 0.0 or f0 != 0.0:
+        a11 += c0 - c0 * c0 / (j0 + c0)
+        r1 += f0 + c0 * (j0 * v[0] - f0) / (j0 + c0)
     det = a11 * a22 - a12 * a21
     u1 = (r1 * a22 - a12 * r2) / det
     u2 = (a11 * r2 - a21 * r1) / det
+    if c0 != 0.0 or f0 != 0.0:
+        v[0] = (j0 * v[0] - f0 + c0 * u1) / (j0 + c0)
     v[1] = u1
     v[2] = u2
     for k in range(ns):
@@ -534,6 +563,71 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W):
 
 
 @njit(cache=True)
+def hardstop_coefficients(q, P, dt, HS):
+    """Implicit hardstop contact coefficients for :func:`friction_step` into HS.
+
+    The contact stiffness acts explicitly through FC (:func:`forces`, positions at the
+    start of the step); what the implicit solve adds on the end-of-step windup speed w is
+    c w with c = (damping + stiffness dt) (damping, plus the stiffness on the penetration
+    the step adds), so a stiff, near-inelastic contact (restitution ~0, like the inertia
+    merge of [thesis] Eq. 30-33) needs no step limit. Returns True if a contact is
+    closed.
+    """
+    HS[0] = 0.0
+    HS[1] = 0.0
+    HS[2] = 0.0
+    HS[3] = 0.0
+    ce = P[P_HS_D] + P[P_HS_K] * dt
+    closed = False
+    if hardstop_penetration(q, P, 0) != 0.0:
+        HS[0] = ce
+        closed = True
+    if hardstop_penetration(q, P, 1) != 0.0:
+        HS[2] = ce
+        closed = True
+    return closed
+
+
+@njit(cache=True)
+def hardstop_release(q, v, P, HS):
+    """After a solve with closed hardstop contacts: a contact whose total torque
+    k pen + c w would pull is opened instead (its implicit part cancels the stiffness
+    torque, HS = (0, -k pen)). Returns True if HS changed (the step must be re-solved)."""
+    k = P[P_HS_K]
+    changed = False
+    for st in range(2):
+        c = HS[2 * st]
+        if c != 0.0:
+            pen = hardstop_penetration(q, P, st)
+            t = c * (v[st] - v[st + 1]) + HS[2 * st + 1]
+            if (k * pen + t) * pen < 0.0:
+                HS[2 * st] = 0.0
+                HS[2 * st + 1] = -k * pen
+                changed = True
+    return changed
+
+
+@njit(cache=True)
+def hardstop_dissipation(P, dt, HS, v_before, v):
+    """Energy [J] the hardstop contacts' damping share removed in the step: the damping
+    torque (c - k dt) w_end (or the cancelling torque of an opened contact) times the
+    mid-step windup speed, which is what the kinetic energy loses to it. The k dt share
+    is stiffness acting on the step's added penetration, booked by the elastic energy."""
+    cd = P[P_HS_D]
+    e = 0.0
+    for st in range(2):
+        c = HS[2 * st]
+        w1 = v[st] - v[st + 1]
+        w0 = v_before[st] - v_before[st + 1]
+        if c != 0.0:
+            t = cd * w1
+        else:
+            t = HS[2 * st + 1]
+        e += dt * t * 0.5 * (w0 + w1)
+    return e
+
+
+@njit(cache=True)
 def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
     """Time derivative of (q, v, z) with friction evaluated explicitly.
 
@@ -548,7 +642,7 @@ def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
     FN = np.zeros(ndof)
     TF = np.zeros(CI.shape[0])
     rec = np.zeros(0)
-    forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, np.zeros(1))
+    forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, np.zeros(1), 1.0)
     friction_torques(v, P, J, CI, CF, FN, TF)
     acc = np.zeros(ndof)
     for i in range(ndof):
@@ -704,6 +798,8 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     vprev = v.copy()
     flags = np.zeros(1)
     FW = np.zeros(2 * CI.shape[0] + 2 * SG.shape[0] + 6 * PG.shape[0])
+    HS = np.zeros(4)
+    vb = np.zeros(ndof)
     for step in range(nsteps):
         tin = torque[step]
         record = (step % rec_every == 0) and irec < rec.shape[0]
@@ -713,7 +809,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
         for i in range(ndof):
             vx[i] = 1.5 * v[i] - 0.5 * vprev[i]
         rr = row if record else empty
-        energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags)
+        energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags, 0.0)
         if flags[0] > 0.0:
             # coil stacking (rare: block arcs lie beyond the hardstop travel). Energy the
             # contact removes = impulse losses (the same on absolute and relative speeds,
@@ -724,7 +820,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             e_stack += stats[0] + u0 - elastic_energy(q, P, SF, SI, RIG, X)
             for i in range(ndof):
                 vx[i] = 1.5 * v[i] - 0.5 * vprev[i]
-            energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags)
+            energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags, 0.0)
         if record:
             ke = 0.0
             for i in range(ndof):
@@ -759,7 +855,19 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
         e_motor += dt * FE[motor] * (om0 + 0.5 * (v0[motor] + v[motor]))
         # 2) friction: each spring mass (the two masses of a nested pair together) is
         #    solved implicitly in its slip speeds, the housing bodies' speeds known
-        e_fric += friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW)
+        #    with the hardstop contacts in the same implicit solve
+        closed = hs_on and hardstop_coefficients(q, P, dt, HS)
+        if closed:
+            for i in range(ndof):
+                vb[i] = v[i]
+        ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS)
+        if closed:
+            if hardstop_release(q, v, P, HS):
+                for i in range(ndof):
+                    v[i] = vb[i]
+                ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS)
+            e_damp += hardstop_dissipation(P, dt, HS, vb, v)
+        e_fric += ef
         if clutch:
             # lock-up clutch slip (effect clutch_slip), implicit like the spring friction
             e_fric += clutch_step(v, v0, P, J, dt)
