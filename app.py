@@ -39,7 +39,7 @@ NAV = (
     ("parameters", "Parameters"),
 )
 # pages that do not take the shared parameter set (default damper and generator)
-EXTRA_NAV = (("/pulsation", "Pulsation generator"), ("/studies", "Studies"))
+EXTRA_NAV = (("/pulsation", "Pulsation generator"), ("/studies", "Studies"), ("/discrepancy", "Discrepancy"))
 
 
 def create_app():

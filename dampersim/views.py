@@ -20,7 +20,9 @@ default set (other rig elements, ...) is stored on the server and referenced by
 **Views.** :func:`explorer_view`, :func:`colourmap_view`, :func:`hysteresis_view`,
 :func:`segments_view`, :func:`maps_view` and :func:`parameters_view` compute what a page
 shows: Plotly figures (as dicts, built with :mod:`dampersim.plotting`), tables and
-summary figures, all JSON-ready.
+summary figures, all JSON-ready. :func:`discrepancy_view` caches the diagnosis of a
+measured campaign (:mod:`dampersim.discrepancy`) keyed by a hash of the campaign's files;
+:func:`discrepancy_figures` draws it from its JSON document.
 
 **Cache.** Views are cached in diskcache under ``cache_dir()/"views"`` keyed by a SHA-256
 of the view name, the complete parameter set, the page state, the package version and the
@@ -1786,6 +1788,575 @@ def apply_table_edits(params: dict | None, rows: list) -> tuple:
     return {"set": params.get("set"), "overrides": accepted}, system
 
 
+# =============================================================================== discrepancy
+# The Discrepancy page: which campaign (a bundled example or an upload), the campaign's
+# validation report, and the cached diagnosis of :mod:`dampersim.discrepancy` with its
+# figures. Uploaded zips are unpacked under ``cache_dir()/"campaign-uploads"/<id>``, where
+# the id is a hash of the zip's bytes, so the same upload lands in the same folder.
+
+#: Sub-directory of the cache with the unpacked campaign uploads.
+UPLOADS_SUBDIR = "campaign-uploads"
+#: Largest campaign zip accepted [bytes] (the server refuses requests above 16 MB and the
+#: browser sends the file base64-encoded, 4/3 of its size).
+MAX_CAMPAIGN_ZIP_BYTES = 10 * 2**20
+#: Most files, and most bytes once unpacked, of one uploaded campaign (refused before
+#: anything is written, so an archive that expands enormously is never unpacked).
+MAX_CAMPAIGN_FILES = 2000
+MAX_CAMPAIGN_UNPACKED_BYTES = 256 * 2**20
+#: Keyword arguments of :func:`dampersim.discrepancy.diagnose.diagnose` used by the
+#: dashboard (empty: the library's defaults); part of the cache key.
+DISCREPANCY_OPTIONS: dict = {}
+#: Bumped when the content of a cached diagnosis view changes shape.
+DISCREPANCY_FORMAT = 1
+#: Default example campaign of the page (the first bundled one if it is missing).
+DEFAULT_EXAMPLE = "hidden-effect-example"
+#: Rough cost of the diagnosis [core seconds per second of torsional record], measured
+#: on the bundled example (12 points of 1 s: 35 s on 2 cores, ~33 simulations per point).
+DIAGNOSIS_CORE_S_PER_RECORD_S = 5.8
+
+CAMPAIGN_ACCEPTED = (f"a .zip (up to {MAX_CAMPAIGN_ZIP_BYTES // 2**20} MB) of one campaign folder: manifest.csv with the "
+                     "columns id, kind, speed_rpm, mean_torque_nm, file, sample_rate_hz, the time series it lists "
+                     "(.parquet or .csv) and optionally campaign.json (see docs/discrepancy.md)")
+_UPLOAD_ID = re.compile(r"^[0-9a-f]{16}$")
+UPLOAD_PREFIX = "upload:"
+
+
+def example_campaigns_dir() -> Path:
+    """Folder of the bundled example campaigns (``examples/campaigns`` of the checkout)."""
+    from dampersim.sweeps.cache import repo_root
+
+    return repo_root() / "examples" / "campaigns"
+
+
+def example_campaigns(root=None) -> dict:
+    """Bundled example campaigns: folder name -> path (folders holding a manifest.csv)."""
+    from dampersim.discrepancy.campaign import MANIFEST
+
+    root = Path(root) if root is not None else example_campaigns_dir()
+    try:
+        entries = sorted(root.iterdir())
+    except OSError:
+        return {}
+    return {p.name: p for p in entries if p.is_dir() and (p / MANIFEST).is_file()}
+
+
+def default_example(examples: dict):
+    """The example a page shows first (None when nothing is bundled)."""
+    return DEFAULT_EXAMPLE if DEFAULT_EXAMPLE in examples else next(iter(examples), None)
+
+
+def _uploads_dir() -> Path:
+    return cache_dir() / UPLOADS_SUBDIR
+
+
+def _manifest_dirs(root: Path) -> list:
+    """Shallowest folders under ``root`` that hold a manifest.csv."""
+    from dampersim.discrepancy.campaign import MANIFEST
+
+    hits = []
+    for sub, dirs, files in os.walk(root):
+        dirs.sort()
+        if MANIFEST in files:
+            hits.append(Path(sub))
+            dirs[:] = []  # a campaign's own sub-folders are its data, not more campaigns
+    if not hits:
+        return []
+    depth = min(len(h.relative_to(root).parts) for h in hits)
+    return [h for h in hits if len(h.relative_to(root).parts) == depth]
+
+
+def upload_folder(upload_id):
+    """Campaign folder of an earlier upload, or None (unknown id or cleared cache)."""
+    if not isinstance(upload_id, str) or not _UPLOAD_ID.match(upload_id):
+        return None
+    root = _uploads_dir() / upload_id
+    if not root.is_dir():
+        return None
+    found = _manifest_dirs(root)
+    return found[0] if len(found) == 1 else None
+
+
+def upload_label(upload_id: str) -> str:
+    """Dropdown label of an upload: its file name and campaign name when known."""
+    try:
+        meta = json.loads((_uploads_dir() / f"{upload_id}.json").read_text(encoding="utf-8"))
+        return f"uploaded: {meta.get('name') or upload_id} ({meta.get('filename') or 'zip'})"
+    except (OSError, ValueError, AttributeError):
+        return f"uploaded campaign {upload_id}"
+
+
+def _zip_members(zf, name: str, accepted: str) -> list:
+    """(ZipInfo, relative parts) of the files to unpack; refuses unsafe or huge archives."""
+    import stat
+    from pathlib import PurePosixPath
+
+    members, total = [], 0
+    for zi in zf.infolist():
+        if zi.is_dir():
+            continue
+        raw = zi.filename.replace("\\", "/")
+        parts = PurePosixPath(raw).parts
+        if raw.startswith("/") or not parts or ".." in parts or ":" in parts[0]:
+            raise InputError(f"{name}: the entry {zi.filename!r} points outside the archive; accepted is {accepted}")
+        if parts[0] == "__MACOSX" or parts[-1].startswith("._") or parts[-1] == ".DS_Store":
+            continue  # file-system litter of archivers, not campaign data
+        if stat.S_ISLNK(zi.external_attr >> 16):
+            raise InputError(f"{name}: the entry {zi.filename!r} is a symbolic link; accepted is {accepted}")
+        if zi.flag_bits & 0x1:
+            raise InputError(f"{name} is encrypted; accepted is {accepted}, without a password")
+        total += zi.file_size
+        members.append((zi, parts))
+    if len(members) > MAX_CAMPAIGN_FILES:
+        raise InputError(f"{name} holds {len(members)} files, more than the {MAX_CAMPAIGN_FILES} accepted; accepted is {accepted}")
+    if total > MAX_CAMPAIGN_UNPACKED_BYTES:
+        raise InputError(f"{name} unpacks to {total / 2**20:.0f} MB, more than the {MAX_CAMPAIGN_UNPACKED_BYTES // 2**20} MB "
+                         f"accepted; accepted is {accepted}")
+    return members
+
+
+def _check_manifest_paths(folder: Path, name: str) -> None:
+    """Refuse an uploaded manifest whose ``file`` entries leave the campaign folder (an
+    upload may only make the server read its own files)."""
+    import csv
+
+    from dampersim.discrepancy.campaign import MANIFEST
+
+    inside = os.path.realpath(folder)
+    try:
+        with open(folder / MANIFEST, newline="", encoding="utf-8", errors="replace") as fh:
+            for i, row in enumerate(csv.DictReader(fh), start=2):
+                rel = (row.get("file") or "").strip()
+                if not rel:
+                    continue  # reported by the validation
+                target = os.path.realpath(os.path.join(inside, rel))
+                if os.path.isabs(rel) or os.path.commonpath([inside, target]) != inside:
+                    raise InputError(f"{name}: {MANIFEST} row {i} [file]: {rel!r} lies outside the campaign folder; "
+                                     "accepted is a path relative to the folder, e.g. points/tc_1200.parquet")
+    except (OSError, csv.Error):
+        pass  # an unreadable manifest is reported by the validation report
+
+
+def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
+    """A campaign zip from a browser upload (``data:...;base64,...``) -> its upload id.
+
+    The zip is unpacked under the cache (see :func:`upload_folder`); the campaign is the
+    shallowest folder holding a manifest.csv (the zip may hold the folder or its content).
+    Raises InputError naming the file and what is accepted: not base64, too large, not a
+    zip, damaged, unsafe entries (absolute paths, "..", links), too many or too large
+    files, no manifest.csv or more than one campaign. Nothing is kept of a refused upload.
+    """
+    import io
+    import shutil
+    import tempfile
+    import zipfile
+    import zlib
+
+    from dampersim.discrepancy.campaign import MANIFEST, read_campaign
+
+    name = filename or "uploaded file"
+    accepted = CAMPAIGN_ACCEPTED
+    if not isinstance(contents, str) or "," not in contents:
+        raise InputError(f"{name}: the upload arrived without content; accepted is {accepted}")
+    try:
+        data = base64.b64decode(contents.split(",", 1)[1], validate=True)
+    except (binascii.Error, ValueError):
+        raise InputError(f"{name}: the upload is not valid base64 data; accepted is {accepted}") from None
+    if not data:
+        raise InputError(f"{name} is empty; accepted is {accepted}")
+    if len(data) > MAX_CAMPAIGN_ZIP_BYTES:
+        raise InputError(f"{name} is {len(data) / 2**20:.1f} MB; accepted is {accepted}")
+    buf = io.BytesIO(data)
+    if not zipfile.is_zipfile(buf):
+        raise InputError(f"{name} is not a zip archive; accepted is {accepted}")
+    upload_id = hashlib.sha256(data).hexdigest()[:16]
+    if upload_folder(upload_id) is not None:
+        return upload_id  # the same zip was unpacked before
+    root = _uploads_dir()
+    try:
+        os.makedirs(root, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cache directory {str(root)!r} cannot be used ({exc.strerror or exc}); "
+                         "set DAMPERSIM_CACHE_DIR to a writable folder") from None
+    tmp = Path(tempfile.mkdtemp(prefix=f".{upload_id}-", dir=root))
+    try:
+        try:
+            with zipfile.ZipFile(buf) as zf:
+                members = _zip_members(zf, name, accepted)
+                if not any(parts[-1] == MANIFEST for _zi, parts in members):
+                    raise InputError(f"{name} holds no {MANIFEST}; accepted is {accepted}")
+                budget = MAX_CAMPAIGN_UNPACKED_BYTES
+                for zi, parts in members:
+                    target = tmp.joinpath(*parts)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    with zf.open(zi) as src, open(target, "wb") as dst:
+                        while chunk := src.read(2**20):
+                            budget -= len(chunk)
+                            if budget < 0:  # the sizes in the archive's directory were wrong
+                                raise InputError(f"{name} unpacks to more than {MAX_CAMPAIGN_UNPACKED_BYTES // 2**20} MB; "
+                                                 f"accepted is {accepted}")
+                            dst.write(chunk)
+        except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError) as exc:
+            raise InputError(f"{name} is a damaged or unsupported zip archive ({exc}); accepted is {accepted}") from None
+        found = _manifest_dirs(tmp)
+        if len(found) > 1:
+            names = ", ".join(str(f.relative_to(tmp)) or "." for f in found)
+            raise InputError(f"{name} holds {len(found)} campaigns ({names}); accepted is {accepted}")
+        _check_manifest_paths(found[0], name)
+        try:
+            cname = read_campaign(found[0]).name
+        except InputError:
+            cname = found[0].name  # the validation report on the page says what is wrong
+        dest = root / upload_id
+        try:
+            os.replace(tmp, dest)
+        except OSError:
+            if upload_folder(upload_id) is None:  # not a concurrent upload of the same zip
+                raise
+        (root / f"{upload_id}.json").write_text(json.dumps({"filename": name, "name": cname}), encoding="utf-8")
+        return upload_id
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def parse_discrepancy_query(query: dict | None, examples: dict) -> tuple:
+    """The Discrepancy page's query -> ``(state, notices)``.
+
+    Keys: ``campaign`` (a bundled example's folder name) or ``upload`` (the id of a
+    campaign uploaded to this server; it wins over ``campaign``). A refused value gives a
+    notice naming the key, the value, what is accepted and what is used instead; unknown
+    keys are ignored. ``state`` = {"campaign": name or None, "upload": id or None}.
+    """
+    query = dict(query or {})
+    notices: list = []
+    fallback = default_example(examples)
+    used = f"the example {fallback}" if fallback else "no campaign (upload one)"
+    state = {"campaign": fallback, "upload": None}
+    if "upload" in query:
+        raw = _single(query, "upload", notices, "Uploaded campaign")
+        text = str(raw).strip()
+        if not _UPLOAD_ID.match(text):
+            notices.append(notice(f"Uploaded campaign (upload={raw!r}) is not an upload id: accepted is the 16 hex digits "
+                                  f"the page writes into the link after an upload. Using {used}."))
+        elif upload_folder(text) is None:
+            notices.append(notice(f"Uploaded campaign (upload={raw!r}) is not on this server (uploads live in the cache, "
+                                  f"which may have been cleared): upload the zip again. Using {used}."))
+        else:
+            return {"campaign": None, "upload": text}, notices
+    if "campaign" in query:
+        raw = _single(query, "campaign", notices, "Example campaign")
+        if isinstance(raw, str) and raw in examples:
+            state["campaign"] = raw
+        else:
+            names = ", ".join(examples) if examples else "(none bundled with this installation)"
+            notices.append(notice(f"Example campaign (campaign={raw!r}) is not a bundled example: accepted is one of {names}. "
+                                  f"Using {used}."))
+    if not examples:
+        notices.append(notice("No example campaigns are bundled with this installation: upload a campaign.", "info"))
+    return state, notices
+
+
+def discrepancy_choice(value, examples: dict) -> tuple:
+    """A campaign dropdown value (example name or ``upload:<id>``) -> ``(state, notices)``."""
+    if isinstance(value, str) and value.startswith(UPLOAD_PREFIX):
+        return parse_discrepancy_query({"upload": value[len(UPLOAD_PREFIX):]}, examples)
+    return parse_discrepancy_query({"campaign": value} if value is not None else {}, examples)
+
+
+def discrepancy_value(state: dict):
+    """Dropdown value of a state (inverse of :func:`discrepancy_choice`)."""
+    return UPLOAD_PREFIX + state["upload"] if state.get("upload") else state.get("campaign")
+
+
+def discrepancy_query(state: dict) -> str:
+    """Query string (with "?") of a Discrepancy page state."""
+    if state.get("upload"):
+        return "?upload=" + quote(state["upload"], safe="")
+    if state.get("campaign"):
+        return "?campaign=" + quote(state["campaign"], safe="._-")
+    return ""
+
+
+def discrepancy_folder(state: dict, examples: dict):
+    """Campaign folder of a state, or None."""
+    if state.get("upload"):
+        return upload_folder(state["upload"])
+    path = examples.get(state.get("campaign") or "")
+    return Path(path) if path is not None else None
+
+
+def campaign_summary(folder) -> dict:
+    """Validation report of the campaign in ``folder``, JSON-ready.
+
+    {"name", "description", "rows", "valid", "torsional", "ramps", "record_s", "problems"
+    (each with file, field, point, message), "error" (a campaign that cannot be read at
+    all) and "ready" (enough valid torsional points for the diagnosis)}. Paths in messages
+    are relative to the campaign folder (the server's folders are not shown).
+    """
+    from dampersim.discrepancy.campaign import read_campaign
+
+    folder = Path(folder)
+    base = {"name": folder.name, "description": "", "rows": 0, "valid": 0, "torsional": 0, "ramps": 0, "record_s": 0.0,
+            "problems": [], "error": None, "ready": False}
+    try:
+        camp = read_campaign(folder)
+    except InputError as exc:
+        msg = str(exc).replace(str(folder) + os.sep, "").replace(str(folder), folder.name)
+        return {**base, "error": msg}
+    try:
+        meta = json.loads((folder / "campaign.json").read_text(encoding="utf-8"))
+        description = str(meta.get("description", "")) if isinstance(meta, dict) else ""
+    except (OSError, ValueError):
+        description = ""
+    rep = camp.report()
+    return {**base, "name": camp.name, "description": description, "rows": rep["rows"], "valid": len(camp.points),
+            "torsional": len(camp.torsional), "ramps": len(camp.ramps),
+            "record_s": float(sum(p.duration for p in camp.torsional)),
+            "problems": rep["problems"], "ready": len(camp.torsional) >= 3}
+
+
+def diagnosis_seconds(record_s: float, cores: int | None = None) -> float:
+    """Rough wall time [s] of diagnosing torsional records of ``record_s`` seconds in all."""
+    from dampersim.discrepancy.drive import Runner
+
+    cores = cores or Runner(None).workers
+    return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * float(record_s) / max(1, cores)
+
+
+def campaign_digest(folder) -> str:
+    """SHA-256 of every file of a campaign folder (relative path and bytes)."""
+    folder = Path(folder)
+    h = hashlib.sha256()
+    for sub, dirs, files in os.walk(folder):
+        dirs.sort()
+        for f in sorted(files):
+            p = Path(sub) / f
+            h.update(p.relative_to(folder).as_posix().encode() + b"\0")
+            with open(p, "rb") as fh:
+                for chunk in iter(lambda: fh.read(2**20), b""):
+                    h.update(chunk)
+            h.update(b"\0")
+    return h.hexdigest()
+
+
+_DISCREPANCY_HASH: dict = {}
+
+
+def discrepancy_source_hash() -> str:
+    """Hash of the code behind a diagnosis: the simulation (kernel source hash), the
+    discrepancy package and the analysis it uses (read once per process)."""
+    if "h" not in _DISCREPANCY_HASH:
+        from dampersim.sweeps.cache import kernel_source_hash
+
+        pkg = Path(__file__).resolve().parent
+        h = hashlib.sha256(kernel_source_hash().encode())
+        files = sorted((pkg / "discrepancy").glob("*.py")) + [pkg / rel for rel in (
+            "analysis/spectrum.py", "analysis/hysteresis.py", "excitation/measured.py", "solver/linear.py")]
+        for p in files:
+            if p.exists():
+                h.update(p.relative_to(pkg).as_posix().encode())
+                h.update(p.read_bytes())
+        _DISCREPANCY_HASH["h"] = h.hexdigest()
+    return _DISCREPANCY_HASH["h"]
+
+
+def discrepancy_key(folder, system=None) -> str:
+    """Cache key of a diagnosis: campaign files, parameter set, options, code and version."""
+    from dampersim.parameters import default_parameters, to_dict
+
+    system = system or default_parameters()
+    doc = {
+        "schema": "dampersim.discrepancy-view",
+        "format": DISCREPANCY_FORMAT,
+        "version": dampersim.__version__,
+        "source": discrepancy_source_hash(),
+        "campaign": campaign_digest(folder),
+        "parameters": {k: v for k, v in to_dict(system).items() if k not in _LABEL_NAMES},
+        "options": DISCREPANCY_OPTIONS,
+    }
+    return hashlib.sha256(json.dumps(_canonical(doc), sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def _plain_json(obj):
+    """numpy -> Python, NaN/inf -> None (strict JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain_json(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    return obj
+
+
+def diagnosis_document(diag) -> dict:
+    """A Diagnosis -> JSON-ready document: :meth:`Diagnosis.to_json` plus the per-point
+    data the figures need (``points``: measured and simulated order amplitudes per stage;
+    ``residuals``: stage -> point id -> order errors [N m])."""
+    doc = dict(diag.to_json())
+    doc["points"] = diag.points
+    doc["residuals"] = diag.residuals
+    return _plain_json(doc)
+
+
+_DOC_FLOATS = ("noise_floor_nm", "gap_before_nm", "gap_calibrated_nm", "gap_after_nm")
+
+
+def diagnosis_from_document(doc: dict) -> SimpleNamespace:
+    """A diagnosis document (or the ``diagnose --json`` output) -> an object with the
+    attributes the figure builders of :mod:`dampersim.plotting.discrepancy` read.
+    Missing numbers become NaN; a document without ``points``/``residuals`` (the CLI's)
+    gives empty ones."""
+    if not isinstance(doc, dict) or "verdict" not in doc:
+        raise InputError("a diagnosis document: accepted is the JSON of Diagnosis.to_json() (with a 'verdict')")
+    d = dict(doc)
+    for k in _DOC_FLOATS:
+        d[k] = float("nan") if d.get(k) is None else float(d[k])
+    d.setdefault("effect", None)
+    d.setdefault("effect_parameters", {})
+    d.setdefault("ranking", [])
+    d.setdefault("held_out_points", [])
+    d["points"] = list(d.get("points") or [])
+    d["residuals"] = {k: dict(v) for k, v in (d.get("residuals") or {}).items()}
+    d.setdefault("locate", {})
+    d.setdefault("problems", [])
+    return SimpleNamespace(**d)
+
+
+def has_point_data(doc: dict) -> bool:
+    """Whether a diagnosis document holds the per-point data of the residual figures."""
+    res = (doc or {}).get("residuals") or {}
+    return bool((doc or {}).get("points")) and all(s in res for s in ("before", "calibrated", "after"))
+
+
+def discrepancy_figures(doc: dict) -> dict:
+    """Figures (plain dicts) of a diagnosis document: ``gap``, ``ranking`` and, when the
+    document holds per-point data, ``map``, ``profile`` and ``overlays`` (else None)."""
+    from dampersim.plotting import discrepancy as fig
+
+    d = diagnosis_from_document(doc)
+    gap = fig.gap_figure(d, None).update_xaxes(title_text="model stage (categories, no unit)")
+    ranking = fig.ranking_figure(d, None).update_xaxes(title_text="candidate effect (fitted ones only)")
+    out = {"gap": _fig(gap), "ranking": _fig(ranking)}
+    full = has_point_data(doc)
+    out["map"] = _fig(fig.residual_map_figure(d, None)) if full else None
+    out["profile"] = _fig(fig.residual_profile_figure(d, None)) if full else None
+    out["overlays"] = _fig(fig.held_out_overlay_figure(d, None)) if full else None
+    return out
+
+
+def effect_parameter_text(name, values: dict) -> str:
+    """"capacity = 930 N m, drag = 0.4 N m s/rad" with the units of the effect registry."""
+    from dampersim.discrepancy.effects import NAMES, parameters_of
+
+    units = {p["name"]: p["unit"] for p in parameters_of(name)} if name in NAMES else {}
+    items = []
+    for k, v in (values or {}).items():
+        unit = units.get(k, "")
+        val = f"{v:.4g}" if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
+        items.append(f"{k} = {val}" + (f" {unit}" if unit and unit != "-" else ""))
+    return ", ".join(items)
+
+
+def ranking_rows(doc: dict) -> list:
+    """Ranking of a diagnosis document as table rows: effect, fitted parameters (with
+    units), held-out gap [N m], improvement over the calibrated model [%], complexity
+    penalty [N m] (score minus gap), score [N m], training fit and screen fit [N m]."""
+    rows = []
+    for i, r in enumerate(doc.get("ranking") or [], start=1):
+        gap, score = r.get("gap_held_out_nm"), r.get("score")
+        imp = r.get("improvement")
+        rows.append({
+            "rank": i,
+            "effect": r.get("effect"),
+            "parameters": effect_parameter_text(r.get("effect"), r.get("parameters") or {}) or "screened out",
+            "gap_held_out_nm": gap,
+            "improvement_pct": None if imp is None else 100.0 * imp,
+            "penalty_nm": None if gap is None or score is None else score - gap,
+            "score_nm": score,
+            "train_fit_nm": r.get("train_fit_nm"),
+            "screen_fit_nm": r.get("screen_fit_nm"),
+            "named": r.get("effect") == doc.get("effect"),
+        })
+    return rows
+
+
+def verdict_summary(doc: dict) -> dict:
+    """What a diagnosis document concludes, in words: {"verdict", "level" (notice level),
+    "headline", "reason", "effect" (registry description or None), "parameters" (text with
+    units), "collapses_on"}. The thresholds are those of :mod:`dampersim.discrepancy.diagnose`."""
+    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy.effects import NAMES, describe
+
+    def nm(v):
+        return "—" if v is None else f"{float(v):.3g} N m"
+
+    verdict, effect = doc.get("verdict"), doc.get("effect")
+    floor, cal, after = doc.get("noise_floor_nm"), doc.get("gap_calibrated_nm"), doc.get("gap_after_nm")
+    ranked = [r for r in doc.get("ranking") or [] if r.get("gap_held_out_nm") is not None]
+    if verdict == "missing_effect":
+        level, headline = "success", f"Missing effect: {effect}"
+        reason = (f"With {effect} added, the held-out gap falls from {nm(cal)} (calibrated) to {nm(after)}, within "
+                  f"{dg.FLOOR_FACTOR_UNEXPLAINED:g}x the noise floor of {nm(floor)}.")
+    elif verdict == "no_missing_effect":
+        level, headline = "info", "No missing effect"
+        reason = (f"After calibration the held-out gap is {nm(cal)}, within {dg.FLOOR_FACTOR_NONE:g}x the noise floor of "
+                  f"{nm(floor)}: the model explains this campaign; any candidate would be fitting noise.")
+    else:
+        level, headline = "warning", "Unexplained discrepancy"
+        best = ranked[0] if ranked else None
+        reason = (f"After calibration the held-out gap is {nm(cal)}, above {dg.FLOOR_FACTOR_NONE:g}x the noise floor of "
+                  f"{nm(floor)}, but no candidate closes it: " + (
+                      f"the best, {best['effect']}, leaves {nm(best['gap_held_out_nm'])} (a named effect must cut the gap by "
+                      f"at least {100 * dg.MIN_IMPROVEMENT:.0f} % and leave it within {dg.FLOOR_FACTOR_UNEXPLAINED:g}x the floor)."
+                      if best else "no candidate could be fitted."))
+    axes = (doc.get("locate") or {}).get("axes") or {}
+    where = (doc.get("locate") or {}).get("collapses_on")
+    return {
+        "verdict": verdict,
+        "level": level,
+        "headline": headline,
+        "reason": reason,
+        "effect": describe(effect) if effect in NAMES else None,
+        "parameters": effect_parameter_text(effect, doc.get("effect_parameters") or {}) if effect else "",
+        "collapses_on": where,
+        "collapse_eta2": (axes.get(where) or {}).get("eta2") if where else None,
+    }
+
+
+def discrepancy_view(folder, progress=None, cache_only: bool = False, workers=None, system=None):
+    """The diagnosis of the campaign in ``folder`` for the page, cached.
+
+    Returns {"key", "campaign" (see :func:`campaign_summary`), "diagnosis" (see
+    :func:`diagnosis_document`), "summary"} or, with ``cache_only``, None on a miss.
+    ``progress(fraction, text)`` is passed to the diagnosis. Raises InputError for a
+    campaign that cannot be diagnosed.
+    """
+    from dampersim.discrepancy.campaign import read_campaign
+    from dampersim.discrepancy.diagnose import diagnose
+
+    key = discrepancy_key(folder, system)
+    hit = load_view(key)
+    if hit is not None or cache_only:
+        return hit
+    t0 = time.perf_counter()
+    camp = read_campaign(folder)
+    diag = diagnose(camp, system, workers=workers, progress=progress, **DISCREPANCY_OPTIONS)
+    doc = diagnosis_document(diag)
+    view = {
+        "kind": "discrepancy",
+        "campaign": campaign_summary(folder),
+        "diagnosis": doc,
+        "summary": {"compute_time_s": time.perf_counter() - t0, "simulations": diag.simulations, "verdict": diag.verdict},
+    }
+    return _save_view(key, view)
+
+
 __all__ = [
     "PAGES",
     "PAGE_PATHS",
@@ -1820,4 +2391,17 @@ __all__ = [
     "apply_table_edits",
     "SweepRegistry",
     "running_sweeps",
+    "example_campaigns",
+    "unpack_campaign_zip",
+    "upload_folder",
+    "parse_discrepancy_query",
+    "discrepancy_query",
+    "campaign_summary",
+    "discrepancy_key",
+    "discrepancy_view",
+    "diagnosis_document",
+    "diagnosis_from_document",
+    "discrepancy_figures",
+    "ranking_rows",
+    "verdict_summary",
 ]

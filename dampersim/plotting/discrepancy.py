@@ -74,6 +74,77 @@ def overlay_figure(diag, point_id: str, title: str | None = None) -> go.Figure:
     return theme.apply(fig, title or f"{point_id}: output orders")
 
 
+STAGE_LABELS = {"before": "model as given", "calibrated": "calibrated", "after": "augmented"}
+
+
+def _group_rms(values, keys) -> tuple:
+    """RMS of ``values`` per distinct key -> (sorted keys, RMS per key)."""
+    keys = np.asarray(keys, dtype=float)
+    values = np.asarray(values, dtype=float)
+    ks = np.unique(keys)
+    return ks, np.array([float(np.sqrt(np.mean(np.square(values[keys == k])))) for k in ks])
+
+
+def residual_profile_figure(diag, title: str | None = "Where the error lies: by speed, mean torque and order") -> go.Figure:
+    """RMS order error of each stage grouped by speed, by mean torque and by engine order
+    (all test points, training and held out)."""
+    fig = make_subplots(rows=1, cols=3, shared_yaxes=True, horizontal_spacing=0.05,
+                        subplot_titles=("by speed", "by mean torque", "by engine order"))
+    pts = diag.points
+    for i, stage in enumerate(STAGES):
+        res = np.array([diag.residuals[stage][p["id"]] for p in pts], dtype=float)  # points x orders [N m]
+        n_orders = res.shape[1]
+        speeds = np.repeat([p["speed_rpm"] for p in pts], n_orders)
+        torques = np.repeat([p["mean_torque_nm"] for p in pts], n_orders)
+        orders = np.tile(np.arange(1, n_orders + 1), len(pts))
+        colour = theme.COLOURWAY[i % len(theme.COLOURWAY)]
+        for col, (keys, unit) in enumerate(((speeds, "rpm"), (torques, "N m"), (orders, "")), start=1):
+            x, y = _group_rms(res.ravel(), keys)
+            fig.add_trace(go.Scatter(
+                x=x, y=y, mode="lines+markers", name=STAGE_LABELS[stage], legendgroup=stage, showlegend=col == 1,
+                line=dict(color=colour, dash=theme.DASHES[i % len(theme.DASHES)]),
+                hovertemplate=f"{STAGE_LABELS[stage]}<br>%{{x:g}}{(' ' + unit) if unit else ''}: %{{y:.3g}} N m<extra></extra>"),
+                row=1, col=col)
+    fig.add_hline(y=diag.noise_floor_nm, line_dash="dash", line_color="#6B7280", annotation_text="noise floor")
+    fig.update_xaxes(title_text=theme.axis_title("speed", "rpm"), row=1, col=1)
+    fig.update_xaxes(title_text=theme.axis_title("mean torque", "N m"), row=1, col=2)
+    fig.update_xaxes(title_text=theme.axis_title("engine order", "-"), dtick=1, row=1, col=3)
+    fig.update_yaxes(title_text=theme.axis_title("RMS order error", "N m"), rangemode="tozero", row=1, col=1)
+    return theme.apply(fig, title)
+
+
+def held_out_overlay_figure(diag, title: str | None = "Held-out points: measured and simulated output orders",
+                            columns: int = 2) -> go.Figure:
+    """Measured output order amplitudes of every held-out point against the model as given
+    and the final model (calibrated plus the named effect, or calibrated alone when none
+    was named); one panel per point."""
+    held = [p for p in diag.points if p["held_out"]]
+    if not held:
+        fig = go.Figure()
+        fig.add_annotation(text="no held-out points", showarrow=False, xref="paper", yref="paper", x=0.5, y=0.5)
+        fig.update_xaxes(title_text=theme.axis_title("engine order", "-"))
+        fig.update_yaxes(title_text=theme.axis_title("output amplitude", "N m"))
+        return theme.apply(fig, title)
+    cols = max(1, min(columns, len(held)))
+    rows = -(-len(held) // cols)
+    fig = make_subplots(rows=rows, cols=cols, vertical_spacing=min(0.12, 0.3 / rows), horizontal_spacing=0.08,
+                        subplot_titles=[f"{p['id']}: {p['speed_rpm']:g} rpm, {p['mean_torque_nm']:g} N m" for p in held])
+    final = f"augmented (+{diag.effect})" if diag.effect else "calibrated (no effect added)"
+    series = (("before", "model as given", "dash"), ("after", final, "solid"))
+    for j, p in enumerate(held):
+        r, c = j // cols + 1, j % cols + 1
+        k = list(range(1, len(p["measured"]) + 1))
+        first = j == 0
+        fig.add_trace(go.Bar(x=k, y=p["measured"], name="measured", legendgroup="measured", showlegend=first,
+                             marker_color="#BBBBBB"), row=r, col=c)
+        for i, (stage, label, dash) in enumerate(series):
+            fig.add_trace(go.Scatter(x=k, y=p[stage], mode="lines+markers", name=label, legendgroup=stage, showlegend=first,
+                                     line=dict(color=theme.COLOURWAY[(0, 2)[i]], dash=dash)), row=r, col=c)
+        fig.update_xaxes(title_text=theme.axis_title("engine order", "-"), dtick=1, row=r, col=c)
+        fig.update_yaxes(title_text=theme.axis_title("output amplitude", "N m"), type="log", row=r, col=c)
+    return theme.apply(fig, title, height=max(360, 300 * rows))
+
+
 def report_html(diag, campaign_name: str = "") -> str:
     """A self-contained HTML report (plotly.js from the CDN)."""
     parts = [f"<h1>Discrepancy report {html.escape(campaign_name)}</h1>",
@@ -95,4 +166,5 @@ def report_html(diag, campaign_name: str = "") -> str:
     return "<!doctype html><html><head><meta charset='utf-8'><title>dampersim discrepancy</title></head><body>" + "\n".join(parts) + "</body></html>"
 
 
-__all__ = ["gap_figure", "residual_map_figure", "order_residual_figure", "ranking_figure", "overlay_figure", "report_html"]
+__all__ = ["gap_figure", "residual_map_figure", "order_residual_figure", "ranking_figure", "overlay_figure",
+           "residual_profile_figure", "held_out_overlay_figure", "report_html"]

@@ -1,0 +1,320 @@
+"""Discrepancy: run the discrepancy workflow of :mod:`dampersim.discrepancy` on a measured
+campaign (a bundled example or an uploaded zip) and show what the model misses: the
+verdict and the named effect, the ranking of candidate effects, the held-out gap at each
+stage against the noise floor, where the error lies and the order amplitudes of the
+held-out points. Layout and callbacks only; data and figures come from
+:mod:`dampersim.views`.
+
+URL keys: ``campaign`` (a bundled example's folder name) or ``upload`` (the id of a
+campaign uploaded to this server).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import dash
+from dash import Input, Output, State, callback, dcc, html, no_update
+
+from dampersim import views
+from dampersim.errors import DampersimError
+from pages import _common as C
+
+PAGE = "discrepancy"
+
+dash.register_page(__name__, path="/discrepancy", name="Discrepancy", title="Discrepancy · dampersim", order=9)
+
+CALIBRATION_LABELS = {
+    "outer_stiffness": "outer spring rate",
+    "inner_stiffness": "inner spring rates",
+    "primary_inertia": "J_pri",
+    "secondary_inertia": "J_sec",
+    "outer_friction": "outer friction factor",
+    "inner_friction": "inner friction factors",
+}
+
+
+def _options(examples: dict, state: dict) -> list:
+    opts = [{"label": f"example: {name}", "value": name} for name in examples]
+    if state.get("upload"):
+        opts.append({"label": views.upload_label(state["upload"]), "value": views.UPLOAD_PREFIX + state["upload"]})
+    return opts
+
+
+def layout(**query):
+    examples = views.example_campaigns()
+    state, notices = views.parse_discrepancy_query(query, examples)
+    # a shared link to a campaign starts its diagnosis (as on the other pages), unless a
+    # value of the link was refused and replaced
+    autorun = any(k in query for k in ("campaign", "upload")) and not any(n["level"] == "warning" for n in notices)
+    controls = [
+        C.section("Campaign", [
+            C.control("Campaign", dcc.Dropdown(id="discrepancy-campaign", options=_options(examples, state),
+                                               value=views.discrepancy_value(state), clearable=False, className="dropdown",
+                                               placeholder="upload a campaign"),
+                      cid="discrepancy-campaign", hint="A bundled example, or a campaign uploaded below."),
+            C.control("Upload a campaign", dcc.Upload(
+                id="discrepancy-upload", children=html.Div(["Drop a campaign .zip here or ", html.A("choose one")]),
+                className="upload", multiple=False, accept=".zip,application/zip"),
+                hint=f"Accepted: {views.CAMPAIGN_ACCEPTED}."),
+            html.Div(id="discrepancy-upload-notices", className="notices"),
+        ]),
+        C.run_panel(PAGE, "Run diagnosis"),
+        C.section("How it works", [html.P(
+            "Every measured input torque drives the model (default parameter set); the estimated parameters are "
+            "calibrated on two thirds of the torsional points; each candidate effect is screened, the best few are "
+            "fitted, and all are judged on the held-out third, which no fit ever sees. Gaps are RMS errors of the "
+            "output order amplitudes 1-8.", className="hint")], open_=False),
+    ]
+    content = [
+        *C.background_header(PAGE),
+        html.Div([
+            C.card("Campaign validation", html.Div(id="discrepancy-report"), wide=True),
+            C.card("Verdict", html.Div(html.P("No diagnosis shown yet: press Run diagnosis.", className="hint"),
+                                       id="discrepancy-verdict"), wide=True),
+            C.card("Held-out gap at each stage", C.graph("discrepancy-gap", 360, "No diagnosis shown yet")),
+            C.card("Candidate effects: held-out gap", C.graph("discrepancy-ranking-fig", 360, "No diagnosis shown yet")),
+            C.card("Ranking of the candidate effects", html.Div(id="discrepancy-ranking"), wide=True),
+            C.card("Where the model disagrees (diamonds: held-out points)",
+                   C.graph("discrepancy-map", 380, "No diagnosis shown yet"), wide=True),
+            C.card(None, C.graph("discrepancy-profile", 360, "No diagnosis shown yet"), wide=True),
+            C.card("Held-out points: measured against the model as given and the final model",
+                   C.graph("discrepancy-overlays", None, "No diagnosis shown yet"), wide=True),
+            C.card(None, html.Details([html.Summary("Diagnosis document (JSON)"), html.Pre(id="discrepancy-json")]), wide=True),
+        ], className="cards"),
+    ]
+    return C.page_frame(PAGE, "Discrepancy", "Where model and measurement disagree, which physical effect the model is "
+                        "missing, and how much of the gap adding it closes on test points that no fit has seen.",
+                        controls, content, notices, C.background_stores(PAGE, None, autorun))
+
+
+C.register_link_callbacks(PAGE)
+
+
+# --------------------------------------------------------------------------- upload and validation
+def upload(contents, filename, options):
+    """An uploaded zip -> (dropdown options, dropdown value, notices). A refused upload
+    changes nothing and says what was wrong and what is accepted."""
+    if not contents:
+        return no_update, no_update, []
+    try:
+        upload_id = views.unpack_campaign_zip(contents, filename)
+    except DampersimError as exc:
+        return no_update, no_update, C.render_notices([views.notice(f"The upload was refused: {exc}", "error")])
+    except Exception as exc:  # never let a strange file take the page down
+        return no_update, no_update, C.render_notices([views.notice(
+            f"The upload was refused: {filename or 'the file'} could not be read ({type(exc).__name__}: {exc}); "
+            f"accepted is {views.CAMPAIGN_ACCEPTED}", "error")])
+    value = views.UPLOAD_PREFIX + upload_id
+    options = [o for o in (options or []) if o.get("value") != value] + [{"label": views.upload_label(upload_id), "value": value}]
+    text = f"{filename or 'The zip'} was unpacked; its validation report is shown on the right."
+    return options, value, C.render_notices([views.notice(text, "success")])
+
+
+@callback(
+    Output("discrepancy-campaign", "options"),
+    Output("discrepancy-campaign", "value"),
+    Output("discrepancy-upload-notices", "children"),
+    Input("discrepancy-upload", "contents"),
+    State("discrepancy-upload", "filename"),
+    State("discrepancy-campaign", "options"),
+    prevent_initial_call=True,
+)
+def upload_cb(contents, filename, options):
+    return upload(contents, filename, options)
+
+
+def report(summary: dict):
+    """The validation report of a campaign (see views.campaign_summary) as page content."""
+    if summary.get("error"):
+        return C.render_notices([views.notice(f"This campaign cannot be read: {summary['error']}. "
+                                              f"Accepted is {views.CAMPAIGN_ACCEPTED}.", "error")])
+    head = html.P([html.B(summary["name"]), f": {summary['valid']} of {summary['rows']} test points valid "
+                   f"({summary['torsional']} torsional, {summary['ramps']} ramps)."
+                   + (f" {summary['description']}" if summary.get("description") else "")])
+    notes = []
+    if summary["problems"]:
+        notes.append(views.notice(f"{len(summary['problems'])} problem(s) found: the test points concerned are left out "
+                                  "of the diagnosis.", "warning"))
+    else:
+        notes.append(views.notice("No problems found.", "success"))
+    if not summary["ready"]:
+        notes.append(views.notice(f"Only {summary['torsional']} valid torsional test point(s): the diagnosis needs at least 3.",
+                                  "error"))
+    out = [head, *C.render_notices(notes)]
+    if summary["problems"]:
+        out.append(C.table([("file", "File"), ("field", "Field"), ("point", "Point"), ("message", "Problem")],
+                           summary["problems"], cid="discrepancy-problems"))
+    return out
+
+
+def report_for(value):
+    examples = views.example_campaigns()
+    state, _notices = views.discrepancy_choice(value, examples)  # refused values: notices come from the request
+    folder = views.discrepancy_folder(state, examples)
+    if folder is None:
+        return C.render_notices([views.notice("No campaign chosen: pick an example or upload a campaign.", "info")])
+    try:
+        return report(views.campaign_summary(folder))
+    except Exception as exc:  # a campaign the reader did not foresee: say so, keep serving
+        return C.render_notices([views.notice(f"This campaign cannot be read ({type(exc).__name__}: {exc}); "
+                                              f"accepted is {views.CAMPAIGN_ACCEPTED}.", "error")])
+
+
+@callback(Output("discrepancy-report", "children"), Input("discrepancy-campaign", "value"))
+def report_cb(value):
+    return report_for(value)
+
+
+# --------------------------------------------------------------------------- diagnosis (background)
+CONTROL_INPUTS = [Input("discrepancy-campaign", "value")]
+
+
+def request(run, initial, values, base_params, autorun):
+    examples = views.example_campaigns()
+    state, notices = views.discrepancy_choice(values[0], examples)
+    out = {"search": views.discrepancy_query(state), "notices": notices}
+    folder = views.discrepancy_folder(state, examples)
+    if folder is None:
+        out["status"] = C.render_notices([views.notice("Pick an example campaign or upload one.", "info")])
+        return out
+    try:
+        view = views.discrepancy_view(folder, cache_only=True)
+        if view is not None:
+            out["hit"] = {"key": view["key"], "from": "cache"}
+            out["status"] = "Loading from the cache…"
+            return out
+        summary = views.campaign_summary(folder)
+    except DampersimError as exc:
+        out["notices"] = notices + [views.notice(f"This campaign cannot be diagnosed: {exc}", "error")]
+        out["status"] = "Not started."
+        return out
+    if not summary["ready"]:
+        out["status"] = C.render_notices([views.notice(
+            f"This campaign cannot be diagnosed: {summary['torsional']} valid torsional test point(s), at least 3 are "
+            "needed (see the validation report).", "error")])
+        return out
+    if run or (initial and autorun):
+        out["job"] = {"state": state}
+        out["status"] = f"Starting the diagnosis of {summary['torsional']} torsional test points…"
+        return out
+    est = views.diagnosis_seconds(summary["record_s"])
+    out["status"] = C.render_notices([views.notice(
+        f"Not diagnosed yet: {summary['torsional']} torsional test points, about {est:.0f} s on this server. "
+        "Press Run diagnosis.", "info")])
+    return out
+
+
+def job(job_data, progress):
+    state = job_data["state"]
+    folder = views.discrepancy_folder(state, views.example_campaigns())
+    if folder is None:
+        return {"error": "the campaign is no longer on this server (upload it again)"}
+    reg = views.SweepRegistry()
+    t0 = time.monotonic()
+    try:
+        reg.start(PAGE, 0)
+        progress(0, 100, "reading the campaign…")
+
+        def on_progress(fraction, text):
+            reg.beat()
+            others = reg.others()
+            extra = f" · {others} other run{'s' if others > 1 else ''} on this server share the cores" if others else ""
+            progress(int(round(100 * fraction)), 100, f"{text} · {time.monotonic() - t0:.0f} s{extra}")
+
+        view = views.discrepancy_view(folder, progress=on_progress)
+        return {"key": view["key"]}
+    except DampersimError as exc:
+        return {"error": str(exc)}
+    except Exception as exc:  # reported on the page, never raised into Dash
+        return {"error": f"unexpected {type(exc).__name__}: {exc}"}
+    finally:
+        reg.stop()
+
+
+def _nm(v):
+    return C.fmt(v, 3, "N m")
+
+
+def verdict_block(doc: dict):
+    v = views.verdict_summary(doc)
+    parts = [*C.render_notices([views.notice(f"{v['headline']}. {v['reason']}", v["level"])])]
+    if v["effect"]:
+        e = v["effect"]
+        parts.append(html.P([html.B(e["name"]), f": {e['description']}. Fitted: {v['parameters']}."]))
+        parts.append(html.Details([html.Summary("Cause and signature"), html.P(e["cause"]),
+                                   html.P(f"Signature: {e['signature']}")]))
+    if v["collapses_on"]:
+        eta = v["collapse_eta2"]
+        parts.append(html.P(f"The calibrated residual varies most with {v['collapses_on'].replace('_', ' ')}"
+                            + (f" (η² = {eta:.2f})." if eta is not None else ".")))
+    cal = doc.get("calibration") or {}
+    if cal:
+        parts.append(html.P("Calibration (scale factors on the estimated parameters): " + ", ".join(
+            f"{CALIBRATION_LABELS.get(k, k)} ×{C.fmt(x, 3)}" for k, x in cal.items()) + ".", className="hint"))
+    return parts
+
+
+def ranking_table(doc: dict):
+    rows = []
+    for r in views.ranking_rows(doc):
+        rows.append({
+            "rank": str(r["rank"]), "effect": r["effect"], "parameters": r["parameters"],
+            "gap": _nm(r["gap_held_out_nm"]),
+            "improvement": "—" if r["improvement_pct"] is None else f"{r['improvement_pct']:+.0f} %",
+            "penalty": _nm(r["penalty_nm"]), "score": _nm(r["score_nm"]),
+            "train": _nm(r["train_fit_nm"]), "screen": _nm(r["screen_fit_nm"]), "named": r["named"],
+        })
+    cols = [("rank", "#"), ("effect", "Effect"), ("parameters", "Fitted parameters"), ("gap", "Held-out gap"),
+            ("improvement", "Improvement on held-out points"), ("penalty", "Complexity penalty"), ("score", "Score"),
+            ("train", "Training fit"), ("screen", "Screen fit")]
+    note = html.P("Ranked by score = held-out gap plus a complexity penalty per fitted parameter. Improvement is relative "
+                  "to the calibrated model without any effect; screened-out candidates were not fitted (their screen fit "
+                  "is the training residual of a linearised signature fit).", className="hint")
+    return [C.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
+
+
+def render(view):
+    doc = view["diagnosis"]
+    figs = views.discrepancy_figures(doc)
+    missing = "This diagnosis document holds no per-point data"
+
+    def fig(name):
+        return figs[name] if figs.get(name) is not None else C.empty_figure(missing)
+
+    camp = view.get("campaign") or {}
+    s = view.get("summary") or {}
+    sims = s.get("simulations", doc.get("simulations"))
+    took = C.fmt(s.get("compute_time_s", doc.get("wall_time_s")), 3, "s")
+    cards = C.summary_cards([
+        ("Verdict", doc["verdict"].replace("_", " "), doc.get("effect") or None),
+        ("Held-out gap", f"{_nm(doc.get('gap_before_nm'))} → {_nm(doc.get('gap_after_nm'))}",
+         f"noise floor {_nm(doc.get('noise_floor_nm'))}; {len(doc.get('held_out_points') or [])} held-out points"),
+        ("Campaign", camp.get("name", "—"), f"{camp.get('torsional', '?')} torsional points, {sims} simulations in {took}"),
+    ])
+    return (cards, verdict_block(doc), ranking_table(doc), fig("gap"), fig("ranking"), fig("map"), fig("profile"),
+            fig("overlays"), json.dumps({k: v for k, v in doc.items() if k not in ("points", "residuals")}, indent=1))
+
+
+SHOW_OUTPUTS = [
+    Output("discrepancy-summary", "children"),
+    Output("discrepancy-verdict", "children"),
+    Output("discrepancy-ranking", "children"),
+    Output("discrepancy-gap", "figure"),
+    Output("discrepancy-ranking-fig", "figure"),
+    Output("discrepancy-map", "figure"),
+    Output("discrepancy-profile", "figure"),
+    Output("discrepancy-overlays", "figure"),
+    Output("discrepancy-json", "children"),
+]
+
+
+def show(data):
+    return C.show_view(data, render, len(SHOW_OUTPUTS), "results")
+
+
+callbacks = C.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
+                                  show_outputs=SHOW_OUTPUTS,
+                                  cancel_text="Cancelled. The results shown are the previous ones; press Run diagnosis to "
+                                              "start again (a diagnosis is cached only once it has finished).")

@@ -1,0 +1,320 @@
+"""Discrepancy page: layout and URL state, campaign uploads (good and bad), the diagnosis as
+a background job with a cached rerun, and the result rendering, through the callback
+functions and through Dash's HTTP endpoint (no browser).
+
+The diagnosis runs once, in a module fixture, on a tiny synthetic campaign written by the
+library (3 torsional points of 0.6 s) with a reduced candidate list: the full diagnosis of
+the bundled example takes about 35 s, too long for this suite.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import shutil
+import time
+import zipfile
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from dash import no_update
+
+import app  # noqa: F401  (registers the pages)
+from dampersim import views
+from pages import discrepancy as D
+from tests.dashboard.test_http import DashClient
+
+EXAMPLE = "hidden-effect-example"
+TINY_POINTS = ["map_900_150", "map_1500_150", "map_2000_50"]  # the fewest points diagnose() accepts (3)
+TINY_OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibration_iterations": 1, "shortlist": 1}
+
+
+def as_json(component) -> str:
+    return json.dumps(component, default=lambda c: c.to_plotly_json() if hasattr(c, "to_plotly_json") else str(c),
+                      ensure_ascii=False)
+
+
+def find(component, cid):
+    if getattr(component, "id", None) == cid:
+        return component
+    children = getattr(component, "children", None)
+    for child in children if isinstance(children, (list, tuple)) else [children]:
+        if hasattr(child, "to_plotly_json"):
+            hit = find(child, cid)
+            if hit is not None:
+                return hit
+    return None
+
+
+def zip_upload(files: dict) -> str:
+    """{name in the archive: bytes} -> the data URL a dcc.Upload delivers."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in files.items():
+            zf.writestr(name, data)
+    return "data:application/zip;base64," + base64.b64encode(buf.getvalue()).decode()
+
+
+def folder_files(folder: Path, prefix: str = "") -> dict:
+    return {prefix + p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """A tiny campaign from the library's synthesiser, uploaded as a zip and diagnosed once
+    through the page's request and job functions, in a cache of its own. The cache
+    directory and the reduced diagnosis options stay set until the module's tests end
+    (tests that need another cache set their own)."""
+    from dampersim.discrepancy.synth import synthesize
+
+    root = tmp_path_factory.mktemp("discrepancy-page")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("DAMPERSIM_CACHE_DIR", str(root / "cache"))
+        mp.setattr(views, "DISCREPANCY_OPTIONS", TINY_OPTIONS)
+        folder = root / "tiny-campaign"
+        synthesize(folder, effects=[("pendulum_absorber", {"inertia": 0.002})], perturb=0.03, seed=3,
+                   points=TINY_POINTS, record=0.6)
+        contents = zip_upload(folder_files(folder, "tiny-campaign/"))
+        options, value, notices = D.upload(contents, "tiny.zip", [])
+        out = D.request(True, False, [value], None, False)
+        progress = []
+        t0 = time.perf_counter()
+        done = D.job(out["job"], lambda d, total, text: progress.append((d, total, text)))
+        yield {"folder": folder, "contents": contents, "options": options, "value": value, "upload_notices": notices,
+               "request": out, "done": done, "progress": progress, "job_s": time.perf_counter() - t0}
+        views.close_stores()
+
+
+@pytest.fixture(scope="module")
+def dc():
+    return DashClient(app.app)
+
+
+# ----------------------------------------------------------------------------- layout and URL state
+def test_layout_renders_with_and_without_a_query():
+    lay = D.layout()
+    for cid in ("discrepancy-url", "discrepancy-link-text", "discrepancy-upload", "discrepancy-run", "discrepancy-cancel",
+                "discrepancy-progress", "discrepancy-gap", "discrepancy-overlays"):
+        assert find(lay, cid) is not None, cid
+    dd = find(lay, "discrepancy-campaign")
+    assert dd.value == EXAMPLE and {"label": f"example: {EXAMPLE}", "value": EXAMPLE} in dd.options
+    assert "could not be used" not in as_json(D.layout(foo="bar", speed="1"))  # unknown keys: ignored, no notice
+    assert find(D.layout(), "discrepancy-autorun").data is False  # a bare visit never starts a 35 s diagnosis
+
+
+def test_good_link_selects_the_example_and_starts_it():
+    lay = D.layout(campaign=EXAMPLE)
+    assert find(lay, "discrepancy-campaign").value == EXAMPLE
+    assert "could not be used" not in as_json(find(lay, "discrepancy-link-notices"))
+    assert find(lay, "discrepancy-autorun").data is True
+    state, notices = views.parse_discrepancy_query({"campaign": EXAMPLE}, views.example_campaigns())
+    assert notices == [] and views.discrepancy_query(state) == f"?campaign={EXAMPLE}"
+    assert views.parse_discrepancy_query({"campaign": EXAMPLE}, views.example_campaigns())[0] == state
+
+
+@pytest.mark.parametrize("query, expect", [
+    ({"campaign": "no-such-campaign"}, ["campaign='no-such-campaign'", f"accepted is one of {EXAMPLE}"]),
+    ({"campaign": "../../etc"}, ["campaign='../../etc'"]),
+    ({"upload": "zz"}, ["upload='zz'", "16 hex digits"]),
+    ({"upload": "0123456789abcdef"}, ["upload='0123456789abcdef'", "upload the zip again"]),
+    ({"campaign": [EXAMPLE, "x"]}, ["given 2 times"]),
+])
+def test_bad_link_values_give_a_notice_and_fall_back(query, expect):
+    lay = D.layout(**query)
+    text = as_json(find(lay, "discrepancy-link-notices"))
+    assert "notice-warning" in text
+    for e in expect:
+        assert e in text, e
+    assert find(lay, "discrepancy-campaign").value == EXAMPLE  # the safe fallback: the bundled example
+    if "upload" in query or "no-such" in str(query):
+        assert find(lay, "discrepancy-autorun").data is False  # a refused link value does not start a run
+
+
+def test_refused_dropdown_value_gives_a_notice_in_the_request(tmp_path, monkeypatch):
+    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+    out = D.request(False, True, ["upload:feedfacefeedface"], None, False)
+    assert "upload the zip again" in as_json(out["notices"]) and out["search"] == f"?campaign={EXAMPLE}"
+    assert "Not diagnosed yet: 12 torsional test points" in as_json(out["status"]) and "job" not in out
+    run = D.request(True, False, [EXAMPLE], None, False)
+    assert run["job"] == {"state": {"campaign": EXAMPLE, "upload": None}}
+    views.close_stores()
+
+
+# ----------------------------------------------------------------------------- uploads
+def _manifest_outside():
+    return zip_upload({"c/manifest.csv": b"id,kind,speed_rpm,mean_torque_nm,file,sample_rate_hz\n"
+                                         b"a,torsional,1500,200,../../secret.csv,5000\n"})
+
+
+@pytest.mark.parametrize("contents, filename, expect", [
+    ("data:application/zip;base64,@@not-base64@@", "broken.zip", "not valid base64"),
+    ("data:text/plain;base64," + base64.b64encode(b"id,kind\n1,2\n").decode(), "manifest.csv", "is not a zip archive"),
+    ("data:application/zip;base64,", "empty.zip", "is empty"),
+    (zip_upload({"notes.txt": b"hello"}), "nomanifest.zip", "holds no manifest.csv"),
+    (zip_upload({"../evil/manifest.csv": b"x"}), "slip.zip", "points outside the archive"),
+    (zip_upload({"a/manifest.csv": b"x", "b/manifest.csv": b"y"}), "two.zip", "holds 2 campaigns"),
+    (_manifest_outside(), "outside.zip", "lies outside the campaign folder"),
+    ("no data url", "weird.zip", "arrived without content"),
+])
+def test_bad_uploads_are_refused_with_a_notice(tmp_path, monkeypatch, contents, filename, expect):
+    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+    options, value, notices = D.upload(contents, filename, [{"label": "x", "value": EXAMPLE}])
+    text = as_json(notices)
+    assert options is no_update and value is no_update  # the chosen campaign stays
+    assert "notice-error" in text and "The upload was refused" in text and expect in text, text
+    assert filename in text and "accepted is" in text and "manifest.csv" in text  # names the file and the format
+    uploads = tmp_path / "cache" / views.UPLOADS_SUBDIR
+    assert not uploads.exists() or not any(p for p in uploads.iterdir() if p.is_dir())  # nothing kept
+
+
+def test_upload_with_problems_shows_every_problem_by_file_and_field(tiny, tmp_path, monkeypatch):
+    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+    bad = tmp_path / "bad"
+    shutil.copytree(tiny["folder"], bad)
+    man = pd.read_csv(bad / "manifest.csv")
+    man.loc[0, "kind"] = "sideways"
+    man.loc[len(man)] = ["ghost", "torsional", 1000.0, 100.0, "points/ghost.parquet", 5000.0]
+    man.to_csv(bad / "manifest.csv", index=False)
+    df = pd.read_parquet(bad / "points" / f"{TINY_POINTS[1]}.parquet").drop(columns=["output_torque_nm"])
+    df.to_parquet(bad / "points" / f"{TINY_POINTS[1]}.parquet")
+    options, value, notices = D.upload(zip_upload(folder_files(bad)), "bad.zip", [])  # folder content at the top
+    assert value.startswith(views.UPLOAD_PREFIX) and "unpacked" in as_json(notices)
+    text = as_json(D.report_for(value))
+    for where in ("manifest.csv row 2", '"kind"', "points/ghost.parquet", f"points/{TINY_POINTS[1]}.parquet",
+                  "output_torque_nm", "3 problem(s) found", "at least 3"):
+        assert where in text, where
+    out = D.request(True, False, [value], None, False)  # Run with 1 valid point: refused, no job
+    assert "job" not in out and "cannot be diagnosed" in as_json(out["status"])
+    views.close_stores()
+
+
+# ----------------------------------------------------------------------------- diagnosis and cache
+def test_good_upload_runs_as_a_job_with_progress(tiny):
+    assert tiny["value"].startswith(views.UPLOAD_PREFIX) and tiny["options"][-1]["value"] == tiny["value"]
+    assert tiny["request"]["search"] == "?upload=" + tiny["value"][len(views.UPLOAD_PREFIX):]
+    assert "key" in tiny["done"], tiny["done"]
+    fracs = [d for d, total, _ in tiny["progress"]]
+    assert fracs[0] == 0 and fracs[-1] == 100 and fracs == sorted(fracs)
+    assert any("calibrate" in text for *_, text in tiny["progress"])
+
+
+def test_rerun_of_the_same_campaign_returns_at_once_from_the_cache(tiny):
+    t0 = time.perf_counter()
+    out = D.request(True, False, [tiny["value"]], None, False)
+    took = time.perf_counter() - t0
+    assert "job" not in out and out["hit"]["key"] == tiny["done"]["key"]
+    assert took < min(2.0, tiny["job_s"])  # hashing a few files, no simulation; 2 s leaves room on a loaded machine
+    again = D.upload(tiny["contents"], "tiny.zip", tiny["options"])  # the same zip again: the same campaign
+    assert again[1] == tiny["value"] and D.request(True, False, [again[1]], None, False)["hit"] == out["hit"]
+    shown = D.show({**out["hit"], "nonce": "n"})
+    assert "Shown from the cache" in as_json(shown[-2])
+
+
+def test_other_options_do_not_reuse_the_cached_diagnosis(tiny, monkeypatch):
+    monkeypatch.setattr(views, "DISCREPANCY_OPTIONS", {**TINY_OPTIONS, "shortlist": 2})
+    folder = views.upload_folder(tiny["value"][len(views.UPLOAD_PREFIX):])
+    assert views.discrepancy_view(folder, cache_only=True) is None  # the options are part of the key
+
+
+def test_show_renders_every_result(tiny):
+    shown = D.show({**tiny["done"], "nonce": "n"})
+    cards, verdict, ranking, gap, rank_fig, res_map, profile, overlays, doc_text, status, notices = shown
+    doc = json.loads(doc_text)
+    assert doc["verdict"] in ("missing_effect", "no_missing_effect", "unexplained")
+    assert doc["verdict"].replace("_", " ") in as_json(cards) and "Done in" in as_json(status) and notices == []
+    assert "noise floor" in as_json(verdict) or "No missing effect" in as_json(verdict)
+    table = as_json(ranking)
+    assert "Improvement on held-out points" in table and "Complexity penalty" in table
+    assert "pendulum_absorber" in table and "turbine_drag" in table
+    assert gap["data"][0]["type"] == "bar" and len(gap["data"][0]["y"]) == 3
+    assert len(res_map["data"]) == 3 and len(profile["data"]) == 9
+    held = len(doc["held_out_points"])
+    assert [t["name"] for t in overlays["data"]].count("measured") == held
+
+
+# ----------------------------------------------------------------------------- rendering from a Diagnosis JSON
+def _axis_titles(fig):
+    lay = fig["layout"]
+    return {k: ((lay[k].get("title") or {}).get("text") or "") for k in lay if k.startswith(("xaxis", "yaxis"))}
+
+
+def test_render_builds_the_figures_from_a_diagnosis_json(tiny):
+    view = views.load_view(tiny["done"]["key"])
+    doc = json.loads(json.dumps(view["diagnosis"]))  # as it would come back from a browser store: plain JSON
+    cards, verdict, ranking, *figs, doc_text = D.render({"diagnosis": doc, "campaign": view["campaign"], "summary": {}})
+    gap, rank_fig, res_map, profile, overlays = figs
+    for fig in figs:
+        assert fig["data"], fig["layout"].get("title")
+        titled = {k: t for k, t in _axis_titles(fig).items() if t}
+        assert titled and all("[" in t or "no unit" in t or "fitted ones" in t for t in titled.values()), titled
+    assert any("N m" in t for t in _axis_titles(gap).values())
+    assert "rpm" in _axis_titles(profile)["xaxis"] and "engine order" in _axis_titles(profile)["xaxis3"]
+    assert all(_axis_titles(overlays)[k].endswith("[N m]") for k in _axis_titles(overlays) if k.startswith("yaxis"))
+    # the CLI's JSON (Diagnosis.to_json(): no per-point data) still gives the gap and the ranking
+    cli_doc = {k: v for k, v in doc.items() if k not in ("points", "residuals")}
+    out = D.render({"diagnosis": cli_doc, "summary": {}})
+    assert out[3]["data"] and out[4]["data"]
+    assert all("no per-point data" in as_json(f) for f in out[5:8])
+
+
+def test_document_helpers_round_trip(tiny):
+    doc = views.load_view(tiny["done"]["key"])["diagnosis"]
+    d = views.diagnosis_from_document(doc)
+    assert d.gap_before_nm == doc["gap_before_nm"] and set(d.residuals) == {"before", "calibrated", "after"}
+    rows = views.ranking_rows(doc)
+    assert [r["effect"] for r in rows] == [r["effect"] for r in doc["ranking"]]
+    fitted = [r for r in rows if r["score_nm"] is not None]
+    # the penalty is the score minus the held-out gap (3 % of the gap per fitted parameter in diagnose.py);
+    # 1e-12 N m: the helper does the same subtraction, so only rounding may differ
+    assert all(abs(r["penalty_nm"] - (r["score_nm"] - r["gap_held_out_nm"])) < 1e-12 for r in fitted)
+    with pytest.raises(Exception, match="verdict"):
+        views.diagnosis_from_document({"no": "verdict"})
+
+
+# ----------------------------------------------------------------------------- over HTTP
+def test_page_and_navbar_are_served(dc):
+    for path in ("/discrepancy", f"/discrepancy?campaign={EXAMPLE}", "/discrepancy?campaign=%ZZ&&&=="):
+        r = dc.client.get(path)
+        assert r.status_code == 200 and b"_dash-renderer" in r.data
+    shell = json.dumps(dc.client.get("/_dash-layout").get_json())  # the app shell, "/" no longer escaped
+    assert '"href": "/discrepancy"' in shell  # the navbar link
+
+
+def test_layout_over_http_good_and_bad_links(dc):
+    good = dc.layout("/discrepancy", f"?campaign={EXAMPLE}&unknown=1")
+    assert f'"value":"{EXAMPLE}"' in good and "could not be used" not in good
+    bad = dc.layout("/discrepancy", "?campaign=nope")
+    assert "notice-warning" in bad and "campaign='nope'" in bad and f"Using the example {EXAMPLE}" in bad
+
+
+def test_bad_upload_over_http_gives_the_notice(dc, tmp_path, monkeypatch):
+    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+    values = {"discrepancy-upload.contents": zip_upload({"readme.txt": b"no campaign here"}),
+              "discrepancy-upload.filename": "readme.zip",
+              "discrepancy-campaign.options": [{"label": f"example: {EXAMPLE}", "value": EXAMPLE}]}
+    r = dc.call("discrepancy-upload-notices.children", values, changed=["discrepancy-upload.contents"])
+    assert r.status_code == 200
+    resp = r.get_json()["response"]
+    assert "discrepancy-campaign" not in resp  # no_update: the chosen campaign stays
+    assert "holds no manifest.csv" in json.dumps(resp["discrepancy-upload-notices"])
+    views.close_stores()
+
+
+def test_request_and_show_over_http(dc, tiny):
+    values = {"discrepancy-run.n_clicks": 1, "discrepancy-campaign.value": tiny["value"],
+              "discrepancy-base-params.data": None, "discrepancy-autorun.data": False}
+    resp = dc.call("discrepancy-url.search", values, changed=["discrepancy-run.n_clicks"]).get_json()["response"]
+    hit = resp["discrepancy-hit"]["data"]
+    assert hit["key"] == tiny["done"]["key"] and "discrepancy-job" not in resp
+    assert resp["discrepancy-url"]["search"].startswith("?upload=")
+    r = dc.call("discrepancy-gap.figure", {"discrepancy-hit.data": hit, "discrepancy-done.data": None},
+                changed=["discrepancy-hit.data"])
+    resp = r.get_json()["response"]
+    assert resp["discrepancy-gap"]["figure"]["data"][0]["type"] == "bar"
+    assert resp["discrepancy-overlays"]["figure"]["data"]
+    # an example not in this cache: Run starts a background job for it
+    values["discrepancy-campaign.value"] = EXAMPLE
+    resp = dc.call("discrepancy-url.search", values, changed=["discrepancy-run.n_clicks"]).get_json()["response"]
+    assert resp["discrepancy-job"]["data"]["state"]["campaign"] == EXAMPLE
