@@ -25,6 +25,7 @@ import app  # noqa: F401  (registers the pages)
 from dampersim import views
 from pages import discrepancy as D
 from tests.dashboard.test_http import DashClient
+from tests.dashboard.test_callbacks import find
 
 EXAMPLE = "hidden-effect-example"
 TINY_POINTS = ["map_900_150", "map_1500_150", "map_2000_50"]  # the fewest points diagnose() accepts (3)
@@ -34,18 +35,6 @@ TINY_OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibratio
 def as_json(component) -> str:
     return json.dumps(component, default=lambda c: c.to_plotly_json() if hasattr(c, "to_plotly_json") else str(c),
                       ensure_ascii=False)
-
-
-def find(component, cid):
-    if getattr(component, "id", None) == cid:
-        return component
-    children = getattr(component, "children", None)
-    for child in children if isinstance(children, (list, tuple)) else [children]:
-        if hasattr(child, "to_plotly_json"):
-            hit = find(child, cid)
-            if hit is not None:
-                return hit
-    return None
 
 
 def zip_upload(files: dict) -> str:
