@@ -216,7 +216,8 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_da
 
     hs_damp: 1.0 puts the hardstop contact damping into FD (explicit right-hand side);
     0.0 leaves it out for the integrator, which applies it implicitly
-    (:func:`hardstop_damping_step`). The recorded hardstop torque includes it either way.
+    (:func:`hardstop_coefficients`, solved in :func:`friction_step`). The recorded
+    hardstop torque includes it either way.
 
     Fills ``rec`` (if its length is > 0) with the measured quantities of this state, and
     sets flags[0] to 1 if a segment is shorter than its block arc (coil stacking).
