@@ -126,13 +126,10 @@ def sin_small(x):
     if abs(x) > 0.5:
         return math.sin(x)
     x2 = x * x
-    return x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))))
-
-
-@njit(cache=True, inline="always")
-def _tanh_from_exp(e, x):
-    """tanh(|x|) = (1 - e)/(1 + e) with e = exp(-2|x|), carrying the sign of x."""
-    return math.copysign((1.0 - e) / (1.0 + e), x)
+    # Taylor series in nested form, divisions by constants written as products (a
+    # division costs several multiplications in the hot loop)
+    return x * (1.0 - x2 * (1.0 / 6.0) * (1.0 - x2 * (1.0 / 20.0) * (1.0 - x2 * (1.0 / 42.0) * (
+        1.0 - x2 * (1.0 / 72.0) * (1.0 - x2 * (1.0 / 110.0))))))
 
 
 @njit(cache=True, inline="always")
@@ -152,8 +149,11 @@ def makkar(v, g1, g2, g3, g4, g5, g6):
             e2 = eb * eb
             e4 = e2 * e2
             e5 = e4 * eb
-            b = _tanh_from_exp(eb, xb)
-            a = _tanh_from_exp(e5 * e5, xb)
+            e10 = e5 * e5
+            # b = tanh(|xb|) = (1 - eb)/(1 + eb), a = (1 - e10)/(1 + e10), one division
+            r = 1.0 / ((1.0 + eb) * (1.0 + e10))
+            b = math.copysign((1.0 - eb) * (1.0 + e10) * r, xb)
+            a = math.copysign((1.0 - e10) * (1.0 + eb) * r, xb)
         c = a
     else:
         a = fast_tanh(g2 * v)
@@ -252,6 +252,8 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_da
         tprev = 0.0
         fdprev = 0.0
         short = SF[s, F_BLOCK] * (1.0 - 1e-6)
+        cfd = 2.0 * nw / reff  # Eq. 21: F = T / r_eff * 2 n_w sin(seg / (2 n_w))
+        carg = 0.5 / nw
         for j in range(n):
             seg = X[base + j + 1] - X[base + j]
             if seg < short:
@@ -262,7 +264,7 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_da
             # redirection force of this segment (Eq. 21); only compression pushes outwards
             fd = 0.0
             if t > 0.0:
-                fd = t / reff * 2.0 * nw * sin_small(seg / (2.0 * nw))
+                fd = t * cfd * sin_small(seg * carg)
             if j >= 1:
                 # mass at node j (DOF off + j - 1): theta torque T_j - T_{j-1} (Eq. 14)
                 d = off + j - 1
@@ -448,8 +450,9 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
     ws = 2 * nc  # per single: alpha, beta (v_m = alpha + beta v_b)
     wp = ws + 2 * ns  # per pair: vo = o0 + o1 v1 + o2 v2, vi = i0 + i1 v1 + i2 v2
     # housing system A [v1; v2] = R for J_sec (1) and J_ter (2)
-    a11 = J[1] / dt
-    a22 = J[2] / dt
+    invdt = 1.0 / dt
+    a11 = J[1] * invdt
+    a22 = J[2] * invdt
     a12 = 0.0
     a21 = 0.0
     r1 = a11 * v[1]
@@ -461,9 +464,10 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
         p, q, ss = _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
         W[2 * c] = p
         W[2 * c + 1] = q
-        jm = J[m] / dt
-        al = (jm * v[m] - p) / (jm + q)
-        be = q / (jm + q)
+        jm = J[m] * invdt
+        inv = 1.0 / (jm + q)
+        al = (jm * v[m] - p) * inv
+        be = q * inv
         W[ws + 2 * k] = al
         W[ws + 2 * k + 1] = be
         # torque on the housing: p + q (alpha - (1 - beta) v_b)
@@ -492,24 +496,25 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
             p3, q3, s3 = _contact_law(c3, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
             W[2 * c3] = p3
             W[2 * c3 + 1] = q3
-        jo = J[mo] / dt
+        jo = J[mo] * invdt
         b11 = jo + q1 + q2 + q3
         r0 = jo * v[mo] - p1 - p2 + p3
         if mi >= 0:
-            ji = J[mi] / dt
+            ji = J[mi] * invdt
             b22 = ji + q3
             ri = ji * v[mi] - p3
-            det = b11 * b22 - q3 * q3
-            o0 = (b22 * r0 + q3 * ri) / det
-            o1 = b22 * q1 / det
-            o2 = b22 * q2 / det
-            i0 = (q3 * r0 + b11 * ri) / det
-            i1 = q3 * q1 / det
-            i2 = q3 * q2 / det
+            idet = 1.0 / (b11 * b22 - q3 * q3)
+            o0 = (b22 * r0 + q3 * ri) * idet
+            o1 = b22 * q1 * idet
+            o2 = b22 * q2 * idet
+            i0 = (q3 * r0 + b11 * ri) * idet
+            i1 = q3 * q1 * idet
+            i2 = q3 * q2 * idet
         else:
-            o0 = r0 / b11
-            o1 = q1 / b11
-            o2 = q2 / b11
+            ib = 1.0 / b11
+            o0 = r0 * ib
+            o1 = q1 * ib
+            o2 = q2 * ib
             i0 = i1 = i2 = 0.0
         base = wp + 6 * k
         W[base] = o0
@@ -536,13 +541,13 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
     a22 += c1
     r1 -= f1
     r2 += f1
-    j0 = J[0] / dt
+    j0 = J[0] * invdt
     if c0 != 0.0 or f0 != 0.0:
         a11 += c0 - c0 * c0 / (j0 + c0)
         r1 += f0 + c0 * (j0 * v[0] - f0) / (j0 + c0)
-    det = a11 * a22 - a12 * a21
-    u1 = (r1 * a22 - a12 * r2) / det
-    u2 = (a11 * r2 - a21 * r1) / det
+    idet = 1.0 / (a11 * a22 - a12 * a21)
+    u1 = (r1 * a22 - a12 * r2) * idet
+    u2 = (a11 * r2 - a21 * r1) * idet
     if c0 != 0.0 or f0 != 0.0:
         v[0] = (j0 * v[0] - f0 + c0 * u1) / (j0 + c0)
     v[1] = u1

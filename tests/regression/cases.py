@@ -1,12 +1,14 @@
-"""Regression cases: a few test points whose order amplitudes are pinned in values.json.
+"""Regression cases: a few test points whose results are pinned in values.json.
 
-Each case lists the relative tolerance its values are compared with and why. The
-points are chosen well conditioned: a 1e-12 relative change of the input amplitude
-moves their excited-order output by < 1e-11 (measured with the same perturbation
-the regeneration script reports), so 1e-6 catches any change of the equations or the
-integrator while allowing for libm differences between machines. The default bench
-point (1500 rpm) sits in a stick-slip regime where such a perturbation moves the
-2nd order by ~4e-4 relative, so it gets 5e-3.
+The same code on the same machine reproduces these values bit for bit. Each case's
+relative tolerance is set from a measurement: rewriting the kernel's arithmetic at
+rounding level (divisions replaced by products with reciprocals, same equations) moved
+its compared values by the amount quoted next to it, and the tolerance is a few times
+that. A change beyond it means the equations or the integrator changed. Friction work is
+the most sensitive quantity (stick-slip details accumulate over the run); the
+excited-order amplitudes are far more robust, except at the 1500 rpm bench point, whose
+stick-slip pattern is chaotic (a 1e-12 relative change of its input amplitude moves its
+2nd order by 4e-4).
 
 Regenerate after an intended physics or solver change (and say why in the commit):
 
@@ -21,18 +23,20 @@ import dampersim as ds
 from dampersim.units import rpm_to_rad_s
 
 #: name -> (speed [rpm], mean torque [N m], orders ((order, amplitude [N m], phase [rad]), ...),
-#:          relative tolerance, reason)
+#:          relative tolerance, measured change after the rounding-level rewrite)
 CASES = {
-    "below-knee-2500rpm": (2500.0, 150.0, ((2, 200.0, 0.0),), 1e-6, "well conditioned"),
-    "knee-crossing-1200rpm": (1200.0, 400.0, ((2, 300.0, 0.0),), 1e-6, "well conditioned"),
-    "above-knee-2800rpm": (2800.0, 450.0, ((2, 150.0, 0.0),), 1e-6, "well conditioned"),
-    "low-torque-1000rpm": (1000.0, 100.0, ((2, 50.0, 0.0),), 1e-6, "well conditioned"),
-    "bench-point-1500rpm": (1500.0, 200.0, ((2, 300.0, 0.0), (4, 100.0, 0.0)), 5e-3,
-                            "stick-slip regime: 1e-12 input change moves order 2 by 4e-4"),
+    "below-knee-2500rpm": (2500.0, 150.0, ((2, 200.0, 0.0),), 3e-3,
+                           "friction work 7e-4, amplitudes 2e-5, windup 2e-4"),
+    "knee-crossing-1200rpm": (1200.0, 400.0, ((2, 300.0, 0.0),), 1e-4, "friction work 3e-6, amplitudes 1e-11"),
+    "above-knee-2800rpm": (2800.0, 450.0, ((2, 150.0, 0.0),), 2e-4, "friction work 4e-5, amplitudes 3e-9"),
+    "low-torque-1000rpm": (1000.0, 100.0, ((2, 50.0, 0.0),), 1e-4, "friction work 2e-7, amplitudes 4e-10"),
+    "bench-point-1500rpm": (1500.0, 200.0, ((2, 300.0, 0.0), (4, 100.0, 0.0)), 1e-2,
+                            "chaotic stick-slip: order 2 and friction work 2e-3"),
 }
 
-#: output amplitudes below this [N m] are not compared (rounding-level content)
-FLOOR_NM = 0.01
+#: only output orders of at least this share of the largest one are compared: the
+#: friction-generated small harmonics (odd orders) are rounding-sensitive everywhere
+SHARE_COMPARED = 0.05
 
 
 def run_case(name: str) -> dict:
