@@ -34,8 +34,8 @@ MISCAL = (
 )
 
 
-def cases(reduced: bool, seeds: int):
-    mags = (1,) if reduced else (0, 1, 2)
+def cases(reduced: bool, seeds: int, mags=None):
+    mags = mags if mags is not None else ((1,) if reduced else (0, 1, 2))
     for name in NAMES:
         e = EFFECTS[name]
         for mi in mags:
@@ -96,12 +96,14 @@ def main(argv=None):
     ap.add_argument("--reduced", action="store_true", help="one magnitude and one seed per effect, fewer controls")
     ap.add_argument("--only", nargs="*", help="effect names (and/or 'no_effect', 'miscalibration') to run")
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--mags", help="magnitude indices to run, e.g. '2' (0 weak, 1 typical, 2 strong)")
     ap.add_argument("--points", type=int, default=12, help="torsional test points per campaign")
     ap.add_argument("--record", type=float, default=1.0, help="record length [s]")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     rows = []
-    for case in cases(a.reduced, a.seeds):
+    mags = tuple(int(x) for x in a.mags.split(",")) if a.mags else None
+    for case in cases(a.reduced, a.seeds, mags):
         if a.only and case["kind"] not in a.only and case["effect"] not in a.only:
             continue
         r = run_case(case, a.points, a.record, a.workers)

@@ -59,7 +59,8 @@ def cmd_synth(args) -> int:
         raise InputError(f"--out {args.out}: accepted is a folder (it exists as a file)")
     base = load_parameters(args.params) if args.params else None
     doc = synthesize(args.out, campaign=args.campaign, effects=effects, perturb=args.perturb, noise_db=args.noise_db,
-                     seed=args.seed, truth=args.truth, base=base, workers=args.workers, record=args.record)
+                     seed=args.seed, truth=args.truth, base=base, workers=args.workers, record=args.record,
+                     points=[x.strip() for x in args.points.split(",") if x.strip()] if args.points else None)
     print(f"wrote {len(doc['points'])} test points to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
     return 0
 
@@ -120,6 +121,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--params", help="base parameter set (TOML); default set if omitted")
     p.add_argument("--record", type=float, default=1.25, help="record length of torsional points [s]")
     p.add_argument("--workers", type=int, default=1, help="processes")
+    p.add_argument("--points", help="comma-separated test-point ids to keep (e.g. tc_1200,map_900_50); default all")
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("diagnose", help="find, name and add the effect the model is missing")

@@ -118,7 +118,7 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
     for k, v in (updates or {}).items():
         applied[k] = v
     if fine:
-        applied.update({"solver.outer_segments": 24, "solver.inner_segments": 10, "solver.time_step": 2e-5})
+        applied.update({"solver.outer_segments": 24, "solver.inner_segments": 10, "solver.time_step": 1e-5})
     system = with_updates(base, applied)
     for name, values in effects:
         e = info(name)
@@ -186,6 +186,10 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
     pts = plan(campaign)
     if points is not None:
         keep = set(points)
+        unknown = sorted(keep - {p[0] for p in pts})
+        if unknown:
+            raise InputError(f"points {', '.join(unknown)}: not in the {campaign!r} campaign plan "
+                             f"(accepted ids look like {pts[0][0]}, see dampersim.discrepancy.synth.plan)")
         pts = [p for p in pts if p[0] in keep]
     noise = 10.0 ** (noise_db / 20.0)
     gains = tuple(float(1.0 + gain_error * rng.standard_normal()) for _ in range(2))

@@ -1,0 +1,41 @@
+"""Unit checks of the diagnosis's fitting helpers and the synth point selection."""
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy.diagnose import PRIOR_LOG_SD, _effect_grid, _lstsq_bounded
+from dampersim.discrepancy.effects import NAMES, info, parameters_of
+from dampersim.discrepancy.synth import synthesize
+from dampersim.errors import InputError
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_effect_grid_stays_inside_the_accepted_range(name):
+    # a grid value outside the bounds used to abort the whole diagnosis
+    meta = next(p for p in parameters_of(name) if p["name"] == info(name).magnitude)
+    grid = _effect_grid(name)
+    assert np.all(np.diff(grid) > 0)
+    if meta["min"] is not None:
+        assert grid[0] >= meta["min"]
+    if meta["max"] is not None:
+        assert grid[-1] <= meta["max"]
+
+
+def test_calibration_step_without_information_returns_to_the_prior():
+    # no sensitivity at all: the regularised step takes the factors back to 0 exactly
+    x0 = np.array([0.3, -0.2])
+    dx = _lstsq_bounded(np.zeros((5, 2)), np.ones(5), x0)
+    np.testing.assert_allclose(x0 + dx, 0.0, atol=1e-12)
+
+
+def test_calibration_step_follows_strong_data():
+    # one well-measured factor: 100 residuals of weight 1 each ask for +0.1; the prior
+    # (spread PRIOR_LOG_SD) pulls by 1/(1 + 1/(100 sd^2)) only
+    J = np.ones((100, 1))
+    dx = _lstsq_bounded(J, 0.1 * np.ones(100), np.zeros(1))
+    assert dx[0] == pytest.approx(0.1 / (1.0 + 1.0 / (100 * PRIOR_LOG_SD ** 2)), rel=1e-12)
+
+
+def test_synth_refuses_unknown_point_ids(tmp_path):
+    with pytest.raises(InputError, match="map_9999_1"):
+        synthesize(tmp_path / "c", points=["tc_1200", "map_9999_1"], record=0.5)
