@@ -196,9 +196,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # 1) compare
         report(0.02, "compare: driving the model with every measured input torque")
         y0 = _orders_of(runner, system, pts)
-        # the model's own discretisation uncertainty joins the noise floor: the same
-        # drive with coarser springs moves the order amplitudes by about as much as the
-        # default springs differ from converged ones (first-order convergence in 1/N)
+        # the model's own discretisation uncertainty joins the noise floor, measured as
+        # the change of the order amplitudes when the same drive runs with two thirds of
+        # the segments (for first-order convergence in 1/N that change is half the
+        # default model's own discretisation error: a scale, not a correction)
         y_coarse = _orders_of(runner, coarse_system(system), pts)
         model_diff = np.abs(_resid(y_coarse, y0))
         floor = math.sqrt(floor ** 2 + _rms(model_diff) ** 2)
