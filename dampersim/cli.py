@@ -14,6 +14,7 @@ import sys
 import numpy as np
 
 from dampersim.errors import DampersimError, InputError
+from dampersim.jsonsafe import jsonable
 from dampersim.units import rpm_to_rad_s
 
 ORDERS = tuple(range(1, 9))
@@ -47,13 +48,6 @@ def _speed(rpm: float) -> float:
     return rpm_to_rad_s(rpm)
 
 
-def _jsonable(x):
-    out = []
-    for v in np.asarray(x, dtype=float):
-        out.append(None if not math.isfinite(v) else float(v))
-    return out
-
-
 def cmd_simulate(args) -> int:
     from dampersim.analysis.metrics import magnification_ratio
     from dampersim.excitation import OrderSum, parse_orders
@@ -77,9 +71,9 @@ def cmd_simulate(args) -> int:
             json.dumps(
                 {
                     "orders": list(ORDERS),
-                    "input_amplitude_nm": _jsonable(a_in),
-                    "output_amplitude_nm": _jsonable(a_out),
-                    "magnification": _jsonable(mr),
+                    "input_amplitude_nm": jsonable(np.asarray(a_in, dtype=float)),
+                    "output_amplitude_nm": jsonable(np.asarray(a_out, dtype=float)),
+                    "magnification": jsonable(np.asarray(mr, dtype=float)),
                     "wall_time_s": res.wall_time,
                 }
             )

@@ -52,6 +52,7 @@ import numpy as np
 
 import dampersim
 from dampersim.errors import DampersimError, InputError, ParameterError
+from dampersim.jsonsafe import jsonable
 from dampersim.units import deg_to_rad, rad_s_to_rpm, rad_to_deg, rpm_to_rad_s
 
 #: Sub-directories of :func:`dampersim.sweeps.cache.cache_dir` used here.
@@ -1811,8 +1812,9 @@ DISCREPANCY_FORMAT = 1
 #: Default example campaign of the page (the first bundled one if it is missing).
 DEFAULT_EXAMPLE = "hidden-effect-example"
 #: Rough cost of the diagnosis [core seconds per second of torsional record], measured
-#: on the bundled example (12 points of 1 s: 35 s on 2 cores, ~33 simulations per point).
-DIAGNOSIS_CORE_S_PER_RECORD_S = 5.8
+#: on the bundled example (12 points of 1 s: 69 s on 2 cores with
+#: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json``).
+DIAGNOSIS_CORE_S_PER_RECORD_S = 11.2
 
 CAMPAIGN_ACCEPTED = (f"a .zip (up to {MAX_CAMPAIGN_ZIP_BYTES // 2**20} MB) of one campaign folder: manifest.csv with the "
                      "columns id, kind, speed_rpm, mean_torque_nm, file, sample_rate_hz, the time series it lists "
@@ -2138,25 +2140,19 @@ def campaign_digest(folder) -> str:
     return h.hexdigest()
 
 
-_DISCREPANCY_HASH: dict = {}
+#: package files behind a diagnosis besides the simulation's (sweeps.cache.SOURCE_FILES)
+#: and the discrepancy package's own modules
+DISCREPANCY_EXTRA_SOURCES = ("analysis/hysteresis.py", "excitation/measured.py", "solver/linear.py")
 
 
 def discrepancy_source_hash() -> str:
-    """Hash of the code behind a diagnosis: the simulation (kernel source hash), the
-    discrepancy package and the analysis it uses (read once per process)."""
-    if "h" not in _DISCREPANCY_HASH:
-        from dampersim.sweeps.cache import kernel_source_hash
+    """Hash of the code behind a diagnosis: the simulation's source files, every module
+    of the discrepancy package and the analysis it uses (read once per process)."""
+    from dampersim.sweeps.cache import SOURCE_FILES, source_hash
 
-        pkg = Path(__file__).resolve().parent
-        h = hashlib.sha256(kernel_source_hash().encode())
-        files = sorted((pkg / "discrepancy").glob("*.py")) + [pkg / rel for rel in (
-            "analysis/spectrum.py", "analysis/hysteresis.py", "excitation/measured.py", "solver/linear.py")]
-        for p in files:
-            if p.exists():
-                h.update(p.relative_to(pkg).as_posix().encode())
-                h.update(p.read_bytes())
-        _DISCREPANCY_HASH["h"] = h.hexdigest()
-    return _DISCREPANCY_HASH["h"]
+    pkg = Path(dampersim.__file__).resolve().parent
+    own = tuple(p.relative_to(pkg).as_posix() for p in sorted((pkg / "discrepancy").glob("*.py")))
+    return source_hash(SOURCE_FILES + own + DISCREPANCY_EXTRA_SOURCES)
 
 
 def discrepancy_key(folder, system=None) -> str:
@@ -2176,24 +2172,6 @@ def discrepancy_key(folder, system=None) -> str:
     return hashlib.sha256(json.dumps(_canonical(doc), sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
-def _plain_json(obj):
-    """numpy -> Python, NaN/inf -> None (strict JSON)."""
-    if isinstance(obj, dict):
-        return {str(k): _plain_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain_json(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _plain_json(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        x = float(obj)
-        return x if math.isfinite(x) else None
-    return obj
-
-
 def diagnosis_document(diag) -> dict:
     """A Diagnosis -> JSON-ready document: :meth:`Diagnosis.to_json` plus the per-point
     data the figures need (``points``: measured and simulated order amplitudes per stage;
@@ -2201,7 +2179,7 @@ def diagnosis_document(diag) -> dict:
     doc = dict(diag.to_json())
     doc["points"] = diag.points
     doc["residuals"] = diag.residuals
-    return _plain_json(doc)
+    return jsonable(doc)
 
 
 _DOC_FLOATS = ("noise_floor_nm", "gap_before_nm", "gap_calibrated_nm", "gap_after_nm")

@@ -8,23 +8,7 @@ import os
 import sys
 
 from dampersim.errors import InputError
-
-
-def _jsonable(obj):
-    import numpy as np
-
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (float, np.floating)):
-        x = float(obj)
-        return x if math.isfinite(x) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
+from dampersim.jsonsafe import jsonable
 
 
 def cmd_effects(args) -> int:
@@ -80,7 +64,7 @@ def cmd_diagnose(args) -> int:
             print(f"[{100 * frac:5.1f} %] {text}", file=sys.stderr, flush=True)
 
     diag = diagnose(camp, system, workers=args.workers, progress=progress)
-    out = _jsonable(diag.to_json())
+    out = jsonable(diag.to_json())
     if args.out_params:
         import dataclasses
 

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from dampersim.discrepancy import drive
-from dampersim.discrepancy.effects import EFFECTS, NAMES, info, with_effect
+from dampersim.discrepancy.effects import EFFECTS, NAMES, info, parameters_of, with_effect
 from dampersim.errors import InputError
 
 #: estimated parameters of [thesis] §6.1 re-fitted by the calibration (log scale factors)
@@ -134,8 +134,6 @@ def _effect_grid(name, n=5):
     """Magnitudes to try for effect ``name``: a geometric span around its typical values,
     kept inside the magnitude parameter's accepted range (a strictly positive floor
     for a lower bound of 0, since the span is geometric)."""
-    from dampersim.discrepancy.effects import parameters_of
-
     e = info(name)
     lo, hi = min(e.magnitudes), max(e.magnitudes)
     meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)

@@ -176,24 +176,6 @@ def finish(name, params, results, checks, thesis, prog: Progress, t0, quick):
     }
 
 
-def jsonable(obj):
-    """Replace NaN/inf by None, numpy scalars by Python ones (strict JSON)."""
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        x = float(obj)
-        return x if math.isfinite(x) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    return obj
-
-
 def check_executor(executor):
     if executor not in ("processes", "serial"):
         raise InputError(f"executor {executor!r}: accepted is 'processes' or 'serial'")

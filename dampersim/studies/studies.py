@@ -17,13 +17,13 @@ import time
 
 import numpy as np
 
+from dampersim.jsonsafe import jsonable
 from dampersim.studies._common import (
     Progress,
     amp_of,
     cached_runs,
     check_executor,
     finish,
-    jsonable,
     mr_of,
     mr_sweep,
     pct,

@@ -84,10 +84,10 @@ def results_dir() -> Path:
 
 
 # --------------------------------------------------------------------------- key
-def _read_source_hash() -> str:
+def _read_source_hash(files=SOURCE_FILES) -> str:
     pkg = Path(dampersim.__file__).resolve().parent
     h = hashlib.sha256()
-    for rel in SOURCE_FILES:
+    for rel in files:
         try:
             text = (pkg / rel).read_bytes()
         except OSError as exc:
@@ -105,6 +105,13 @@ def _read_source_hash() -> str:
 @functools.lru_cache(maxsize=1)
 def _process_source_hash() -> str:
     return _read_source_hash()
+
+
+@functools.lru_cache(maxsize=8)
+def source_hash(files: tuple) -> str:
+    """SHA-256 of the given package files (paths relative to ``dampersim/``), read once
+    per process: the key ingredient for caches of results other than sweep points."""
+    return _read_source_hash(files)
 
 
 def kernel_source_hash() -> str:

@@ -21,14 +21,11 @@ import time
 import numpy as np
 
 from dampersim.errors import InputError
+from dampersim.jsonsafe import jsonable
 
 TIME_COLUMNS = ("time_s", "time", "t")
 DEFAULT_SIGNAL_COLUMN = "output_torque_nm"
 TABLE_NAME = "sweep.parquet"
-
-
-def _jsonable(values):
-    return [None if not math.isfinite(float(v)) else float(v) for v in np.asarray(values, dtype=float)]
 
 
 # --------------------------------------------------------------------------- progress
@@ -436,7 +433,7 @@ def order_amplitudes_of_file(path, rpm, column=None, fs=None, orders=None, windo
     amps = order_amplitudes(x, fs, rpm_to_rad_s(rpm), orders)
     return {
         "orders": [float(k) for k in np.atleast_1d(np.asarray(orders, dtype=float))],
-        "amplitude_nm": _jsonable(amps),
+        "amplitude_nm": jsonable(np.asarray(amps, dtype=float)),
         "column": column,
         "sample_rate_hz": float(fs),
         "samples": int(x.size),
