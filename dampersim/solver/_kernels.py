@@ -106,65 +106,100 @@ R_SET_I = 21  # torque the inner set's springs pass to J_ter [N m]
 NREC = 22
 THETA = 0.5
 
+# Compile options of every kernel: Python's division-by-zero checks are off (a check per
+# division blocks SIMD code; a non-finite state is caught by the divergence check), and
+# multiply-adds may fuse (contraction only, no reassociation: each fused operation is
+# rounded once, so results stay within rounding of the unfused ones).
+JIT = dict(cache=True, error_model="numpy", fastmath={"contract"})
+# Kernels that allocate nothing are compiled without numba's reference counting: the
+# hot loop calls them every step, and each call would otherwise pay atomic
+# increments and decrements on every array argument.
+LEAF = dict(JIT, _nrt=False)
 
-@njit(cache=True, inline="always")
+
+# Taylor coefficients 1/k! of expm1, k = 1..12
+_C2, _C3, _C4, _C5, _C6, _C7 = 1.0 / 2, 1.0 / 6, 1.0 / 24, 1.0 / 120, 1.0 / 720, 1.0 / 5040
+_C8, _C9, _C10, _C11, _C12 = 1.0 / 40320, 1.0 / 362880, 1.0 / 3628800, 1.0 / 39916800, 1.0 / 479001600
+
+
+@njit(inline="always", **JIT)
+def expm1_neg(y):
+    """exp(-y) - 1 for y >= 0, accurate to a few ulp relative, branch-free.
+
+    y is clamped at 40 (exp(-40) is below float64's resolution next to 1), scaled by
+    2^-7 into [0, 0.3125], where a degree-12 Taylor polynomial has truncation error
+    < 2e-16 relative; seven doublings e^(2h) - 1 = u (2 + u) bring it back. A doubling
+    never amplifies the relative error for u in (-1, 0], and no step cancels, so the
+    result stays accurate near y = 0 (unlike 1 - exp(-y)). Only multiplications and
+    additions: loops over many contacts vectorise (libm's exp is an opaque call)."""
+    h = -min(y, 40.0) * (1.0 / 128.0)
+    u = h * (1.0 + h * (_C2 + h * (_C3 + h * (_C4 + h * (_C5 + h * (_C6 + h * (_C7 + h * (
+        _C8 + h * (_C9 + h * (_C10 + h * (_C11 + h * _C12)))))))))))
+    u = u * (2.0 + u)
+    u = u * (2.0 + u)
+    u = u * (2.0 + u)
+    u = u * (2.0 + u)
+    u = u * (2.0 + u)
+    u = u * (2.0 + u)
+    u = u * (2.0 + u)
+    return u
+
+
+@njit(inline="always", **JIT)
 def fast_tanh(x):
-    """tanh(x) from one exp (about 3x faster than libm's tanh here); exactly +-1 where
-    tanh rounds to +-1 in float64. Relative error below 1e-15 for |x| > 1e-3 and below
-    1e-12 above 1e-6 (cancellation in 1 - e; the absolute error stays ~1e-16)."""
-    ax = abs(x)
-    if ax > 19.1:
-        return math.copysign(1.0, x)
-    e = math.exp(-2.0 * ax)
-    return math.copysign((1.0 - e) / (1.0 + e), x)
+    """tanh(x) = -u / (2 + u) with u = expm1(-2|x|): relative error of a few ulp for
+    every x (no cancellation near 0), exactly +-1 where tanh rounds to +-1."""
+    u = expm1_neg(2.0 * abs(x))
+    return math.copysign(-u / (2.0 + u), x)
 
 
-@njit(cache=True, inline="always")
-def sin_small(x):
-    """sin(x): a short odd polynomial for |x| <= 0.5 (error < 1e-12 relative), libm above.
-    The redirection angle of a segment per coil is a few hundredths of a radian."""
-    if abs(x) > 0.5:
-        return math.sin(x)
+@njit(inline="always", **JIT)
+def sin_poly(x):
+    """sin(x) for |x| <= 0.5 (error < 1e-12 relative) as a short odd polynomial, without
+    branches; callers check the range. The redirection angle of a segment per coil is a
+    few hundredths of a radian."""
     x2 = x * x
-    # Taylor series in nested form, divisions by constants written as products (a
-    # division costs several multiplications in the hot loop)
+    # Taylor series in nested form, divisions by constants written as products
     return x * (1.0 - x2 * (1.0 / 6.0) * (1.0 - x2 * (1.0 / 20.0) * (1.0 - x2 * (1.0 / 42.0) * (
         1.0 - x2 * (1.0 / 72.0) * (1.0 - x2 * (1.0 / 110.0))))))
 
 
-@njit(cache=True, inline="always")
-def makkar(v, g1, g2, g3, g4, g5, g6):
-    """Friction coefficient and its slope d(mu)/dv at slip speed v [m/s] ([thesis] Eq. 27).
+@njit(inline="always", **JIT)
+def makkar_fast(v, g1, g2, g3, g4, g6):
+    """:func:`makkar` for the thesis's coefficient pattern gamma2 = gamma5 = 10 gamma3:
+    all three tanh terms from one expm1, u = exp(-2 gamma3 |v|) - 1, with
+    exp(-20 gamma3 |v|) - 1 = (1 + u)^10 - 1 built from products (relative accuracy
+    kept). Branch-free."""
+    xb = g3 * v
+    ub = expm1_neg(2.0 * abs(xb))
+    u2 = ub * (2.0 + ub)
+    u4 = u2 * (2.0 + u2)
+    u5 = u4 + ub + u4 * ub
+    u10 = u5 * (2.0 + u5)
+    # tanh(|xb|) = -ub / (2 + ub), tanh(10 |xb|) = -u10 / (2 + u10): one division
+    r = 1.0 / ((2.0 + ub) * (2.0 + u10))
+    b = math.copysign(-ub * (2.0 + u10) * r, xb)
+    a = math.copysign(-u10 * (2.0 + ub) * r, xb)
+    mu = g1 * (a - b) + g4 * a + g6 * v
+    dmu = g1 * (g2 * (1.0 - a * a) - g3 * (1.0 - b * b)) + g4 * g2 * (1.0 - a * a) + g6
+    return mu, dmu
 
-    With the thesis's coefficients (gamma2 = gamma5 = 10 gamma3) all three tanh terms
-    come from one exp: exp(-2 gamma2 |v|) = exp(-2 gamma3 |v|)^10.
-    """
+
+@njit(inline="always", **JIT)
+def makkar(v, g1, g2, g3, g4, g5, g6):
+    """Friction coefficient and its slope d(mu)/dv at slip speed v [m/s] ([thesis] Eq. 27):
+    mu = g1 (tanh(g2 v) - tanh(g3 v)) + g4 tanh(g5 v) + g6 v."""
     if g2 == 10.0 * g3 and g5 == g2:
-        xb = g3 * v
-        if abs(xb) > 19.1:
-            a = math.copysign(1.0, v)
-            b = a
-        else:
-            eb = math.exp(-2.0 * abs(xb))
-            e2 = eb * eb
-            e4 = e2 * e2
-            e5 = e4 * eb
-            e10 = e5 * e5
-            # b = tanh(|xb|) = (1 - eb)/(1 + eb), a = (1 - e10)/(1 + e10), one division
-            r = 1.0 / ((1.0 + eb) * (1.0 + e10))
-            b = math.copysign((1.0 - eb) * (1.0 + e10) * r, xb)
-            a = math.copysign((1.0 - e10) * (1.0 + eb) * r, xb)
-        c = a
-    else:
-        a = fast_tanh(g2 * v)
-        b = fast_tanh(g3 * v)
-        c = a if g5 == g2 else fast_tanh(g5 * v)
+        return makkar_fast(v, g1, g2, g3, g4, g6)
+    a = fast_tanh(g2 * v)
+    b = fast_tanh(g3 * v)
+    c = fast_tanh(g5 * v)
     mu = g1 * (a - b) + g4 * c + g6 * v
     dmu = g1 * (g2 * (1.0 - a * a) - g3 * (1.0 - b * b)) + g4 * g5 * (1.0 - c * c) + g6
     return mu, dmu
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def spring_nodes(q, P, SF, SI, X):
     """Slot coordinates of every node of every spring into X (Eq. 16-18)."""
     for s in range(SF.shape[0]):
@@ -195,7 +230,7 @@ def spring_nodes(q, P, SF, SI, X):
         X[base + n] = xn
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **JIT)
 def hardstop_penetration(q, P, st):
     """Windup of set ``st`` (0 outer, 1 inner) beyond its hardstop [rad]: positive past
     the positive stop, negative past the negative stop, 0 in between."""
@@ -209,8 +244,8 @@ def hardstop_penetration(q, P, st):
     return 0.0
 
 
-@njit(cache=True)
-def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_damp):
+@njit(**LEAF)
+def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_damp, ST):
     """Torques on every DOF at state (q, v): conservative FC, dissipative FD, external FE
     (input and motor), and the normal force FN [N] on every spring mass (count springs).
 
@@ -221,9 +256,11 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_da
 
     Fills ``rec`` (if its length is > 0) with the measured quantities of this state, and
     sets flags[0] to 1 if a segment is shorter than its block arc (coil stacking).
-    Returns the elastic energy [J].
+    ST: scratch of length 2 n_nodes (segment torques, redirection forces).
+    Returns the elastic energy [J] if ``rec`` has a length, else 0.
     """
     ndof = q.shape[0]
+    n_nodes = X.shape[0]
     om0 = P[P_OMEGA0]
     for i in range(ndof):
         FC[i] = 0.0
@@ -249,70 +286,77 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_da
         m = SF[s, F_MASS]
         pitch = SF[s, F_PITCH]
         w = q[a] - q[b]
-        tprev = 0.0
-        fdprev = 0.0
         short = SF[s, F_BLOCK] * (1.0 - 1e-6)
         cfd = 2.0 * nw / reff  # Eq. 21: F = T / r_eff * 2 n_w sin(seg / (2 n_w))
         carg = 0.5 / nw
+        # 1) torque T_j and redirection force of every segment (Eq. 21; only compression
+        #    pushes outwards) into ST; written without branches so that it vectorises
+        nshort = 0
+        nwide = 0
         for j in range(n):
             seg = X[base + j + 1] - X[base + j]
-            if seg < short:
-                flags[0] = 1.0
-            c = phiseg - seg
-            t = kseg * c
-            energy += 0.5 * count * kseg * c * c
-            # redirection force of this segment (Eq. 21); only compression pushes outwards
-            fd = 0.0
-            if t > 0.0:
-                fd = t * cfd * sin_small(seg * carg)
-            if j >= 1:
-                # mass at node j (DOF off + j - 1): theta torque T_j - T_{j-1} (Eq. 14)
-                d = off + j - 1
-                FC[d] += count * (t - tprev)
-                # redirection share (Eq. 22-24): end segments go fully to their mass
-                if j == 1:
-                    fr = fdprev + 0.5 * fd
-                else:
-                    fr = 0.5 * fdprev + 0.5 * fd
-                if j == n - 1:
-                    fr = fr + 0.5 * fd
-                om = om0 + v[d]
-                FN[d] = count * (m * reff * om * om + fr + SF[s, F_PRELOAD])
-            if j == 0:
-                # node 0 is pushed (theta direction) by segment 0 onto the stopper it rests on
-                fa = SF[s, F_PHIPS]
-                fb = w + SF[s, F_PHISS]
-                tb = 0.0
-                if fb > fa:
-                    tb = count * t
-                elif fa > fb:
-                    FC[a] += count * t
-                else:
-                    FC[a] += 0.5 * count * t
-                    tb = 0.5 * count * t
-                FC[b] += tb
-                if a == 0:
-                    sb0 += tb
-                else:
-                    sb1 += tb
-            if j == n - 1:
-                fa = pitch - SF[s, F_PHIPS]
-                fb = w + pitch - SF[s, F_PHISS]
-                tb = 0.0
-                if fb < fa:
-                    tb = count * t
-                elif fa < fb:
-                    FC[a] -= count * t
-                else:
-                    FC[a] -= 0.5 * count * t
-                    tb = 0.5 * count * t
-                FC[b] -= tb
-                if a == 0:
-                    sb0 -= tb
-                else:
-                    sb1 -= tb
-            tprev = t
-            fdprev = fd
+            t = kseg * (phiseg - seg)
+            xs = seg * carg
+            nshort += seg < short
+            nwide += abs(xs) > 0.5
+            ST[base + j] = t
+            ST[n_nodes + base + j] = max(t, 0.0) * cfd * sin_poly(xs)
+        if nshort > 0:
+            flags[0] = 1.0
+        if nwide > 0:  # a segment wider than sin_poly's range: exact sine (rare)
+            for j in range(n):
+                seg = X[base + j + 1] - X[base + j]
+                ST[n_nodes + base + j] = max(ST[base + j], 0.0) * cfd * math.sin(seg * carg)
+        if rec.shape[0] > 0:  # elastic energy, only where it is recorded
+            for j in range(n):
+                c = phiseg - (X[base + j + 1] - X[base + j])
+                energy += 0.5 * count * kseg * c * c
+        # 2) each mass j = 1 .. n-1 (DOF off + j - 1) between segments j-1 and j: theta
+        #    torque T_j - T_{j-1} (Eq. 14); normal force = centrifugal + half of each
+        #    neighbour's redirection force + preload (Eq. 19-24) ...
+        cen = m * reff
+        pre = SF[s, F_PRELOAD]
+        for j in range(1, n):
+            d = off + j - 1
+            FC[d] += count * (ST[base + j] - ST[base + j - 1])
+            om = om0 + v[d]
+            FN[d] = count * (cen * om * om + 0.5 * (ST[n_nodes + base + j - 1] + ST[n_nodes + base + j]) + pre)
+        # ... and the end segments' redirection goes fully to their one mass
+        FN[off] += count * 0.5 * ST[n_nodes + base]
+        FN[off + n - 2] += count * 0.5 * ST[n_nodes + base + n - 1]
+        # 3) the end nodes are pushed (theta direction) onto the stopper they rest on
+        t = ST[base]
+        fa = SF[s, F_PHIPS]
+        fb = w + SF[s, F_PHISS]
+        tb = 0.0
+        if fb > fa:
+            tb = count * t
+        elif fa > fb:
+            FC[a] += count * t
+        else:
+            FC[a] += 0.5 * count * t
+            tb = 0.5 * count * t
+        FC[b] += tb
+        if a == 0:
+            sb0 += tb
+        else:
+            sb1 += tb
+        t = ST[base + n - 1]
+        fa = pitch - SF[s, F_PHIPS]
+        fb = w + pitch - SF[s, F_PHISS]
+        tb = 0.0
+        if fb < fa:
+            tb = count * t
+        elif fa < fb:
+            FC[a] -= count * t
+        else:
+            FC[a] -= 0.5 * count * t
+            tb = 0.5 * count * t
+        FC[b] -= tb
+        if a == 0:
+            sb0 -= tb
+        else:
+            sb1 -= tb
     if P[P_NRT] > 0.0:
         nested_radial_transfer(P, SI, FN)
     # hardstops: stiff, damped, one-sided contact on the windup of each set
@@ -391,7 +435,7 @@ def forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, flags, hs_da
     return energy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def friction_torques(v, P, J, CI, CF, FN, TF):
     """Explicit friction torque of each contact at speeds v (for the RHS and reference):
     TF[c] > 0 brakes the mass CI[c,0] and drives the housing CI[c,1] (Eq. 28)."""
@@ -404,27 +448,53 @@ def friction_torques(v, P, J, CI, CF, FN, TF):
         TF[c] = CF[c, 0] * FN[a] * r * mu
 
 
-@njit(cache=True, inline="always")
-def _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6):
-    """Linearised friction torque of contact c: T = p + q * s with s the end-of-step slip
-    [rad/s]. The law is taken at the start-of-step slip s0 and applied at the step's
-    midpoint slip (s0 + s)/2 (second order, A-stable); a negative slope (Stribeck
-    branch) is applied explicitly at the current slip. Returns (p, q, current slip)."""
+@njit(inline="always", **JIT)
+def _linear_law(c, mu, dmu, v, v0, FN, CI, CF, W):
+    """Linearised friction torque of contact c into W: T = W[2c] + W[2c+1] * s, with s the
+    end-of-step slip [rad/s]. The law (mu, dmu) is taken at the start-of-step slip s0 and
+    applied at the step's midpoint slip (s0 + s)/2 (second order, A-stable); a negative
+    slope (Stribeck branch) is applied explicitly at the current slip."""
     a = CI[c, 0]
     b = CI[c, 1]
     r = CF[c, 1]
     cn = CF[c, 0] * FN[a] * r
     s0 = v0[a] - v0[b]
     ss = v[a] - v[b]
-    mu, dmu = makkar(s0 * r, g1, g2, g3, g4, g5, g6)
     qc = THETA * cn * dmu * r
-    qi = qc if qc > 0.0 else 0.0
-    p = cn * mu - qi * s0 + (qc - qi) * (ss - s0)
-    return p, qi, ss
+    qi = max(qc, 0.0)
+    W[2 * c] = cn * mu - qi * s0 + (qc - qi) * (ss - s0)
+    W[2 * c + 1] = qi
 
 
-@njit(cache=True)
-def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
+@njit(**LEAF)
+def contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU):
+    """Linearised friction law of every contact into W[0 : 2 n_contacts] (see
+    :func:`_linear_law`).
+
+    XS, MU, DMU: scratch of n_contacts rounded up to a multiple of 8 (an AVX-512 register)
+    for the slips [m/s], friction coefficients and slopes. The coefficients are computed
+    in one loop over these contiguous arrays, free of calls and branches, which the
+    compiler turns into SIMD code; the padding spares it a scalar remainder loop."""
+    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
+    nc = CI.shape[0]
+    for c in range(nc):
+        XS[c] = (v0[CI[c, 0]] - v0[CI[c, 1]]) * CF[c, 1]
+    if g2 == 10.0 * g3 and g5 == g2:
+        for c in range(XS.shape[0]):
+            mu, dmu = makkar_fast(XS[c], g1, g2, g3, g4, g6)
+            MU[c] = mu
+            DMU[c] = dmu
+    else:
+        for c in range(XS.shape[0]):
+            mu, dmu = makkar(XS[c], g1, g2, g3, g4, g5, g6)
+            MU[c] = mu
+            DMU[c] = dmu
+    for c in range(nc):
+        _linear_law(c, MU[c], DMU[c], v, v0, FN, CI, CF, W)
+
+
+@njit(**LEAF)
+def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU):
     """Friction impulses for one step, applied to v in place; returns dissipation [J].
 
     The linearised friction of every contact is solved implicitly together with the two
@@ -444,9 +514,9 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
     with friction keeps J_pri's inertia on J_sec while the outer hardstop is closed.
     v[0] changes only when contact 0 is closed.
     """
-    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     nc = CI.shape[0]
     ns = SG.shape[0]
+    contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU)
     ws = 2 * nc  # per single: alpha, beta (v_m = alpha + beta v_b)
     wp = ws + 2 * ns  # per pair: vo = o0 + o1 v1 + o2 v2, vi = i0 + i1 v1 + i2 v2
     # housing system A [v1; v2] = R for J_sec (1) and J_ter (2)
@@ -461,9 +531,8 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
         m = SG[k, 0]
         c = SG[k, 1]
         b = CI[c, 1]
-        p, q, ss = _contact_law(c, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-        W[2 * c] = p
-        W[2 * c + 1] = q
+        p = W[2 * c]
+        q = W[2 * c + 1]
         jm = J[m] * invdt
         inv = 1.0 / (jm + q)
         al = (jm * v[m] - p) * inv
@@ -485,17 +554,14 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
         c3 = PG[k, 4]
         p1 = q1 = p2 = q2 = p3 = q3 = 0.0
         if c1 >= 0:
-            p1, q1, s1 = _contact_law(c1, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-            W[2 * c1] = p1
-            W[2 * c1 + 1] = q1
+            p1 = W[2 * c1]
+            q1 = W[2 * c1 + 1]
         if c2 >= 0:
-            p2, q2, s2 = _contact_law(c2, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-            W[2 * c2] = p2
-            W[2 * c2 + 1] = q2
+            p2 = W[2 * c2]
+            q2 = W[2 * c2 + 1]
         if c3 >= 0:
-            p3, q3, s3 = _contact_law(c3, v, v0, FN, CI, CF, g1, g2, g3, g4, g5, g6)
-            W[2 * c3] = p3
-            W[2 * c3 + 1] = q3
+            p3 = W[2 * c3]
+            q3 = W[2 * c3 + 1]
         jo = J[mo] * invdt
         b11 = jo + q1 + q2 + q3
         r0 = jo * v[mo] - p1 - p2 + p3
@@ -568,7 +634,7 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS):
     return diss
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def hardstop_coefficients(q, P, dt, HS):
     """Implicit hardstop contact coefficients for :func:`friction_step` into HS.
 
@@ -594,7 +660,7 @@ def hardstop_coefficients(q, P, dt, HS):
     return closed
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def hardstop_release(q, v, P, HS):
     """After a solve with closed hardstop contacts: a contact whose total torque
     k pen + c w would pull is opened instead (its implicit part cancels the stiffness
@@ -613,7 +679,7 @@ def hardstop_release(q, v, P, HS):
     return changed
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def hardstop_dissipation(P, dt, HS, v_before, v):
     """Energy [J] the hardstop contacts' damping share removed in the step: the damping
     torque (c - k dt) w_end (or the cancelling torque of an opened contact) times the
@@ -633,7 +699,7 @@ def hardstop_dissipation(P, dt, HS, v_before, v):
     return e
 
 
-@njit(cache=True)
+@njit(**JIT)
 def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
     """Time derivative of (q, v, z) with friction evaluated explicitly.
 
@@ -648,7 +714,7 @@ def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
     FN = np.zeros(ndof)
     TF = np.zeros(CI.shape[0])
     rec = np.zeros(0)
-    forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, np.zeros(1), 1.0)
+    forces(q, v, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rec, np.zeros(1), 1.0, np.zeros(2 * n_nodes))
     friction_torques(v, P, J, CI, CF, FN, TF)
     acc = np.zeros(ndof)
     for i in range(ndof):
@@ -669,7 +735,7 @@ def rhs(q, v, z, tin, P, SF, SI, J, RIG, CI, CF, n_nodes):
     return v.copy(), acc, -v[motor]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _stack_pair(q, v, J, da, db, delta, stats):
     """Separate two masses (x_b - x_a must grow by delta; x = q_A - q) keeping their
     momentum, and remove their approach speed with an inelastic impulse."""
@@ -688,7 +754,7 @@ def _stack_pair(q, v, J, da, db, delta, stats):
         stats[0] += ke0 - 0.5 * tot * vm * vm
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def elastic_energy(q, P, SF, SI, RIG, X):
     """Elastic energy [J] of springs (all count copies), hardstop contacts and rig shafts."""
     spring_nodes(q, P, SF, SI, X)
@@ -715,7 +781,7 @@ def elastic_energy(q, P, SF, SI, RIG, X):
     return e
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def stacking(q, v, P, SF, SI, J, X, stats):
     """Coil-stacking contact ([thesis] Eq. 29, made momentum-conserving): no segment may
     be shorter than its block arc. Gauss-Seidel sweeps over the segments until no
@@ -759,7 +825,7 @@ def stacking(q, v, P, SF, SI, J, X, stats):
                 break
 
 
-@njit(cache=True)
+@njit(**JIT)
 def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_every, seg_every, rec, seg_rec):
     """March ``len(torque)`` steps of size P[P_DT] from state (q, v) in place.
 
@@ -783,6 +849,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     if hs_on:
         wlim = 0.35 + max(max(P[P_HSP_O], -P[P_HSN_O]), max(P[P_HSP_I], -P[P_HSN_I]))
     X = np.zeros(n_nodes)
+    ST = np.zeros(2 * n_nodes)
     FC = np.zeros(ndof)
     FD = np.zeros(ndof)
     FE = np.zeros(ndof)
@@ -805,17 +872,27 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     flags = np.zeros(1)
     FW = np.zeros(2 * CI.shape[0] + 2 * SG.shape[0] + 6 * PG.shape[0])
     HS = np.zeros(4)
+    npad = (CI.shape[0] + 7) // 8 * 8  # contact_laws' SIMD scratch
+    XS = np.zeros(npad)
+    MU = np.zeros(npad)
+    DMU = np.zeros(npad)
     vb = np.zeros(ndof)
+    rig0 = int(P[P_RIG0])  # spring masses (3 .. rig0-1) carry no viscous torque
+    rc = 0  # steps since the last record / segment sample
+    sc = 0
     for step in range(nsteps):
         tin = torque[step]
-        record = (step % rec_every == 0) and irec < rec.shape[0]
+        record = rc == 0 and irec < rec.shape[0]
+        rc += 1
+        if rc == rec_every:
+            rc = 0
         # v holds the speeds half a step before q's time; velocity-dependent forces use
         # the speeds extrapolated to q's time (second order; plain v would make the
         # viscous terms first order)
         for i in range(ndof):
             vx[i] = 1.5 * v[i] - 0.5 * vprev[i]
         rr = row if record else empty
-        energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags, 0.0)
+        energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags, 0.0, ST)
         if flags[0] > 0.0:
             # coil stacking (rare: block arcs lie beyond the hardstop travel). Energy the
             # contact removes = impulse losses (the same on absolute and relative speeds,
@@ -826,7 +903,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             e_stack += stats[0] + u0 - elastic_energy(q, P, SF, SI, RIG, X)
             for i in range(ndof):
                 vx[i] = 1.5 * v[i] - 0.5 * vprev[i]
-            energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags, 0.0)
+            energy = forces(q, vx, tin, z, P, SF, SI, J, RIG, X, FC, FD, FE, FN, rr, flags, 0.0, ST)
         if record:
             ke = 0.0
             for i in range(ndof):
@@ -843,21 +920,25 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             for k in range(rec.shape[1]):
                 rec[irec, k] = row[k]
             irec += 1
-        if step % seg_every == 0 and iseg < seg_rec.shape[0]:
+        if sc == 0 and iseg < seg_rec.shape[0]:
             spring_nodes(q, P, SF, SI, X)
             for k in range(n_nodes):
                 seg_rec[iseg, k] = X[k]
             iseg += 1
+        sc += 1
+        if sc == seg_every:
+            sc = 0
         # 1) smooth forces: explicit velocity update; the viscous work is taken at the
         #    mid-step speed, which makes the kinetic-energy bookkeeping exact
         for i in range(ndof):
-            vi = v[i]
-            vn = vi + dt * (FC[i] + FD[i] + FE[i]) * invj[i]
-            if held and i == motor:
-                vn = 0.0
-            v0[i] = vi
-            v[i] = vn
-            e_damp -= dt * FD[i] * (om0 + 0.5 * (vi + vn))
+            v0[i] = v[i]
+            v[i] += dt * (FC[i] + FD[i] + FE[i]) * invj[i]
+        if held:
+            v[motor] = 0.0
+        for i in range(3):
+            e_damp -= dt * FD[i] * (om0 + 0.5 * (v0[i] + v[i]))
+        for i in range(rig0, ndof):
+            e_damp -= dt * FD[i] * (om0 + 0.5 * (v0[i] + v[i]))
         e_motor += dt * FE[motor] * (om0 + 0.5 * (v0[motor] + v[motor]))
         # 2) friction: each spring mass (the two masses of a nested pair together) is
         #    solved implicitly in its slip speeds, the housing bodies' speeds known
@@ -866,12 +947,12 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
         if closed:
             for i in range(ndof):
                 vb[i] = v[i]
-        ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS)
+        ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU)
         if closed:
             if hardstop_release(q, v, P, HS):
                 for i in range(ndof):
                     v[i] = vb[i]
-                ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS)
+                ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU)
             e_damp += hardstop_dissipation(P, dt, HS, vb, v)
         e_fric += ef
         if clutch:
@@ -900,7 +981,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
 # Each is off when its P slot is zero; see dampersim.solver.layout for the slots.
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **JIT)
 def dead_zone(x, half):
     """x with a band of +-half removed (free play): 0 inside, x -+ half outside."""
     if x > half:
@@ -910,7 +991,7 @@ def dead_zone(x, half):
     return 0.0
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def nested_radial_transfer(P, SI, FN):
     """Effect nested_radial_transfer ([thesis] §5.3.2): the inner spring of each nested
     pair presses on its outer spring, so a share P[P_NRT] of the inner mass's normal force
@@ -926,7 +1007,7 @@ def nested_radial_transfer(P, SI, FN):
         FN[o1 + i] += f * FN[o2 + i]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def effect_forces(q, v, P, FC, FD):
     """Conservative (FC) and dissipative (FD) torques of the smooth effects; returns their
     elastic energy [J].
@@ -967,7 +1048,7 @@ def effect_forces(q, v, P, FC, FD):
     return energy
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def effect_energy(q, P):
     """Elastic energy [J] stored by the effects' springs (see effect_forces)."""
     energy = 0.0
@@ -981,7 +1062,7 @@ def effect_energy(q, P):
     return energy
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **JIT)
 def clutch_law(s, P):
     """Lock-up clutch torque [N m] passed from the drive side to J_pri at slip speed s
     [rad/s] (effect clutch_slip) and its slope: capacity * tanh(s / s_slip) + c_oil * s."""
@@ -991,7 +1072,7 @@ def clutch_law(s, P):
     return cap * th + P[P_CL_VISC] * s, cap * (1.0 - th * th) / ws + P[P_CL_VISC]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def clutch_step(v, v0, P, J, dt):
     """Clutch impulse for one step, backward Euler in the slip speed linearised about the
     current slip (the locked clutch is very stiff); applied to v in place. Returns the
@@ -1057,7 +1138,7 @@ ER_PMAX = 10  # largest cylinder pressure seen since the last record [Pa]
 NEREC = 11
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **JIT)
 def crank_slider(th, r, L):
     """Piston displacement from TDC s(theta) [m] and its first two crank-angle
     derivatives ([thesis] Eq. 2 geometry, no pin offset)."""
@@ -1070,7 +1151,7 @@ def crank_slider(th, r, L):
     return s, ds, dds
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **JIT)
 def cylinder_pressure(s, PE):
     """Polytropic air-spring pressure P = P_c (V_BDC / V)^gamma [Pa] (model-spec §8: the
     physical form; the thesis's Eq. 1 and 3 are misprinted)."""
@@ -1078,7 +1159,7 @@ def cylinder_pressure(s, PE):
     return PE[_E_PC] * (PE[_E_VBDC] / vol) ** PE[_E_GAMMA]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def engine_cylinder_torques(th, om, PE, gas_scale):
     """(gas, inertia-velocity, friction torque [N m], effective extra inertia [kg m^2],
     pressure [Pa]) of one cylinder at crank angle th [rad] and speed om [rad/s]."""
@@ -1094,7 +1175,7 @@ def engine_cylinder_torques(th, om, PE, gas_scale):
     return t_gas, t_in, t_fr, m * ds * ds, PE[_E_PATM] + pg
 
 
-@njit(cache=True)
+@njit(**JIT)
 def engine_integrate(q, v, qd, vd, setpoint, gas_scale, PE, CH, CYL, AINV, MD, KD, rec_every, rec):
     """March the pulsation generator chain ``len(setpoint)`` steps (symplectic Euler).
 
