@@ -64,6 +64,10 @@ def order_rule(system=None, quick=False, executor="processes", progress=None, ca
         ranked = sorted(full, key=lambda o: -o[1])
         base_idx = len(points)
         points.append(point(rpm, tq, full))
+        # the full signal again with every amplitude changed by 1e-9 (relative): the MR
+        # change this causes is the damper's own repeatability (stick-slip can be
+        # chaotic), the scale below which a replica's MR change means nothing
+        points.append(point(rpm, tq, [(o[0], o[1] * (1.0 + 1e-9), *o[2:]) for o in full]))
         sub_idx = []
         for n in range(1, max_n + 1):
             sub_idx.append(len(points))
@@ -73,9 +77,12 @@ def order_rule(system=None, quick=False, executor="processes", progress=None, ca
     table = mr_sweep(system, points, prog, executor, cancel)
     out = []
     worst = {n: 0.0 for n in range(1, max_n + 1)}
+    worst_scatter = 0.0
     for rpm, tq, full, ranked, bi, sub in cases:
         prim = [k for k in PRIMARY if any(abs(o[0] - k) < 1e-9 for o in ranked[:max_n])]
         base = {k: mr_of(table, bi, k) for k in prim}
+        scatter = {f"{k:g}": pct(mr_of(table, bi + 1, k), base[k]) for k in prim}
+        worst_scatter = max([worst_scatter] + [abs(v) for v in scatter.values() if math.isfinite(v)])
         rows = []
         for n, si in enumerate(sub, start=1):
             inc = [o[0] for o in ranked[:n]]
@@ -90,9 +97,11 @@ def order_rule(system=None, quick=False, executor="processes", progress=None, ca
             "mean_torque_nm": tq,
             "signal": [{"order": o[0], "amplitude_nm": o[1]} for o in ranked],
             "mr_full": {f"{k:g}": v for k, v in base.items()},
+            "repeatability_pct": scatter,
             "replicas": rows,
         })
-    results = {"cases": out, "max_abs_change_pct_by_n": {str(n): v for n, v in worst.items()}}
+    results = {"cases": out, "max_abs_change_pct_by_n": {str(n): v for n, v in worst.items()},
+               "max_abs_repeatability_pct": worst_scatter}
     checks = {
         "three_orders_below_2pct": worst.get(3, math.inf) < 2.0,
         "dominant_alone_clearly_more": worst[1] > 2.0 * max(worst.get(3, 0.0), 0.25),
