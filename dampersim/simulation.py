@@ -33,6 +33,7 @@ def ensure_compiled(lay=None) -> float:
     kern.integrate(
         q, v, np.zeros(1), lay.P, lay.SF, lay.SI, lay.J, lay.rig, lay.contacts_idx, lay.contacts_f,
         lay.singles, lay.pairs, lay.n_nodes, 1, 1, np.zeros((1, kern.NREC)), np.zeros((1, lay.n_nodes)),
+        *kern.no_generator(),
     )
     _COMPILED = True
     return time.perf_counter() - t0
@@ -83,7 +84,7 @@ def simulate(
     t0 = time.perf_counter()
     status, step = kern.integrate(
         q, v, torque, lay.P, lay.SF, lay.SI, lay.J, lay.rig, lay.contacts_idx, lay.contacts_f, lay.singles, lay.pairs,
-        lay.n_nodes, rec_every, seg_every, rec, seg,
+        lay.n_nodes, rec_every, seg_every, rec, seg, *kern.no_generator(),
     )
     wall = time.perf_counter() - t0
     if status != 0:

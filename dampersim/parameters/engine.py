@@ -139,11 +139,10 @@ class PulsationGenerator:
     charge_pressure: float = param("Pa", "compressed-air charge P_c (abs) ([thesis] §4.1.1: 1-3 bar)", 0.5e5, 4.0e5, default=2.5e5)
     stiff_shaft_stiffness: float = param("N m/rad", "propshaft to the output dyno when run alone (torsionally stiff)", 1.0e4, 1.0e9, default=1.0e7)
     stiff_shaft_damping: float = param("N m s/rad", "damping of that propshaft", 0.0, default=100.0)
-    link_stiffness: float = param("N m/rad", "transducer shaft into J_pri when coupled (Table 9.2 T40B)", 1.0e4, 1.0e9, default=1.4e6)
+    link_stiffness: float = param("N m/rad", "transducer shaft into the damper's input DOF (J_pri) when coupled (Table 9.2 T40B)", 1.0e4, 1.0e9, default=1.4e6)
     link_damping: float = param("N m s/rad", "damping of that shaft", 0.0, default=75.0)
     mean_torque_gain: float = param("1/s", "integral gain of the input dyno's mean-torque control on the measured output", 0.0, 100.0, default=3.0)
     dyno_damping: float = param("N m s/rad", "active damping of the input dyno's torque control on its speed deviation (estimate)", 0.0, 1.0e4, default=30.0)
-    downstream_damping_ratio: float = param("-", "stiffness-proportional damping of the linearised damper when coupled (stands in for spring friction)", 0.0, 1.0, default=0.05)
 
     @property
     def crank_dofs(self) -> tuple:

@@ -17,6 +17,12 @@ Integrator: symplectic (semi-implicit) Euler for the smooth forces, and a linear
 implicit (Rosenbrock-type) update of each friction contact in turn, so the stiff
 friction slope at small slip speed (about 38 per m/s) needs no tiny step.
 Array layouts are defined in :mod:`dampersim.solver.layout`.
+
+The pulsation generator's chain ([thesis] chapter 4, model-spec §8; end of this module)
+is stepped by :func:`engine_step`: alone on a stiff propshaft by
+:func:`engine_integrate`, or as the torque source of the damper inside
+:func:`integrate` (the rig mode of [thesis] §4.2), where its transducer shaft drives the
+damper's input DOF with the same step.
 """
 
 import math
@@ -826,19 +832,30 @@ def stacking(q, v, P, SF, SI, J, X, stats):
 
 
 @njit(**JIT)
-def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_every, seg_every, rec, seg_rec):
+def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_every, seg_every, rec, seg_rec,
+              gq, gv, gsetpoint, ggas, PE, CH, CYL, grec):
     """March ``len(torque)`` steps of size P[P_DT] from state (q, v) in place.
 
     torque[n] is the input torque [N m] at t = n dt. Every ``rec_every`` steps a row of
     ``rec`` (columns R_*) is written, every ``seg_every`` steps a row of ``seg_rec`` (slot
     coordinates of all spring nodes). Returns (status, step): status 0 = finished,
     1 = NaN, 2 = runaway speed, 3 = windup far beyond a hardstop.
+
+    Pulsation generator input ([thesis] §4.2-4.3, model-spec §2 "optional input chain"),
+    on when ``gq`` is not empty (else pass :func:`no_generator`): the generator chain
+    (state gq, gv; arrays PE, CH, CYL of :mod:`dampersim.solver.engine_layout`, whose
+    step PE[_E_DT] must equal P[P_DT]) is marched with the damper by :func:`engine_step`,
+    its set point gsetpoint[n] [N m] and gas ramp ggas[n] [-] indexed like ``torque``.
+    Its link shaft drives the damper's input DOF P[P_INPUT]: the link torque, taken at
+    the start of each step, is added to torque[n] on that DOF and is the reaction on the
+    transducer, so the input work R_E_IN is the link's work on the damper. The
+    generator's channels go to ``grec`` (columns ER_*, ER_TOUT = the rig's output
+    transducer torque) on the rows of ``rec``.
     """
     ndof = q.shape[0]
     nsteps = torque.shape[0]
     dt = P[P_DT]
     om0 = P[P_OMEGA0]
-    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     held = P[P_HELD] > 0.0
     motor = int(P[P_MOTOR])
     din = int(P[P_INPUT])
@@ -880,8 +897,20 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     rig0 = int(P[P_RIG0])  # spring masses (3 .. rig0-1) carry no viscous torque
     rc = 0  # steps since the last record / segment sample
     sc = 0
+    gen = gq.shape[0] > 0  # pulsation generator drives the input DOF
+    GF = np.zeros(gq.shape[0])
+    GX = np.zeros(gq.shape[0])
+    GOUT = np.zeros(EO_SIZE)
+    gz = 0.0
+    gpmax = 0.0
+    tl = 0.0
     for step in range(nsteps):
         tin = torque[step]
+        if gen:
+            tl = engine_step(gq, gv, step * dt, gsetpoint[step], ggas[step], gz, q[din], v[din], PE, CH, CYL, GF, GX, GOUT)
+            gz += dt * (gsetpoint[step] - tl)
+            gpmax = max(gpmax, GOUT[EO_PMAX])
+            tin += tl
         record = rc == 0 and irec < rec.shape[0]
         rc += 1
         if rc == rec_every:
@@ -919,6 +948,9 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             row[R_E_STACK] = e_stack
             for k in range(rec.shape[1]):
                 rec[irec, k] = row[k]
+            if gen and irec < grec.shape[0]:
+                engine_record(grec, irec, step * dt, tl, row[R_TOUT], gpmax, GOUT)
+                gpmax = 0.0
             irec += 1
         if sc == 0 and iseg < seg_rec.shape[0]:
             spring_nodes(q, P, SF, SI, X)
@@ -974,6 +1006,10 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
             if hs_on:
                 if abs(q[0] - q[1]) > wlim or abs(q[1] - q[2]) > wlim:
                     return 3, step
+            if gen:
+                st = engine_diverged(gv, PE)
+                if st != 0:
+                    return st, step
     return 0, nsteps
 
 
@@ -1091,7 +1127,9 @@ def clutch_step(v, v0, P, J, dt):
 
 # =====================================================================================
 # Pulsation generator (motored engine) chain: [thesis] chapter 4, model-spec §8.
-# Separate from the damper kernel above; array layouts in dampersim.solver.engine_layout.
+# One step of the chain is :func:`engine_step`; :func:`engine_integrate` marches it
+# alone on a stiff propshaft, :func:`integrate` marches it coupled to the full damper.
+# Array layouts in dampersim.solver.engine_layout.
 # =====================================================================================
 
 # engine scalar vector PE (must match dampersim.solver.engine_layout)
@@ -1113,15 +1151,11 @@ _E_RBACK = 14  # pi D h_ring [m^2]
 _E_VREF = 15
 _E_BEAR = 16
 _E_KI = 17
-_E_MODE = 18  # 0: alone on a stiff shaft to a held output dyno; 1: coupled (linear downstream)
-_E_KLINK = 19
-_E_BLINK = 20
-_E_OUT_A = 21  # downstream output shaft: dof before, dof after (-1: ground), k, c
-_E_OUT_B = 22
-_E_OUT_K = 23
-_E_OUT_C = 24
-_E_VMAX = 25
-_E_DDYNO = 26  # active damping of the input dyno's torque control on its speed deviation [N m s/rad]
+_E_MODE = 18  # 0: alone on a stiff shaft to a held output dyno; 1: link shaft into the damper's input DOF
+_E_KLINK = 19  # stiffness of the shaft leaving the transducer [N m/rad]
+_E_BLINK = 20  # its damping [N m s/rad]
+_E_VMAX = 21
+_E_DDYNO = 22  # active damping of the input dyno's torque control on its speed deviation [N m s/rad]
 
 # engine record columns
 ER_T = 0
@@ -1133,9 +1167,20 @@ ER_P1 = 5  # cylinder 1 pressure [Pa]
 ER_TGAS = 6  # sum of gas torques [N m]
 ER_TINER = 7  # sum of reciprocating inertia torques (velocity part) [N m]
 ER_TFRIC = 8  # sum of ring + bearing friction torques [N m]
-ER_TOUT = 9  # downstream output transducer torque (coupled), else = ER_TLINK [N m]
+ER_TOUT = 9  # coupled: the rig's output transducer torque (full damper model), else = ER_TLINK [N m]
 ER_PMAX = 10  # largest cylinder pressure seen since the last record [Pa]
 NEREC = 11
+
+# scratch OUT of engine_step (length EO_SIZE)
+EO_TDYNO = 0  # input dyno torque [N m]
+EO_W_TRANS = 1  # absolute transducer speed [rad/s]
+EO_THETA1 = 2  # crank angle of cylinder 1 [rad]
+EO_P1 = 3  # cylinder 1 pressure [Pa]
+EO_TGAS = 4
+EO_TINER = 5
+EO_TFRIC = 6
+EO_PMAX = 7  # largest cylinder pressure of this step [Pa]
+EO_SIZE = 8
 
 
 @njit(inline="always", **JIT)
@@ -1175,113 +1220,143 @@ def engine_cylinder_torques(th, om, PE, gas_scale):
     return t_gas, t_in, t_fr, m * ds * ds, PE[_E_PATM] + pg
 
 
-@njit(**JIT)
-def engine_integrate(q, v, qd, vd, setpoint, gas_scale, PE, CH, CYL, AINV, MD, KD, rec_every, rec):
-    """March the pulsation generator chain ``len(setpoint)`` steps (symplectic Euler).
+@njit(**LEAF)
+def engine_step(q, v, t, setpoint, gas_scale, z, qd, vd, PE, CH, CYL, F, extra, OUT):
+    """Advance the pulsation generator chain one step of PE[_E_DT] (symplectic Euler)
+    from time t [s]; returns the torque [N m] of the shaft leaving the transducer.
 
     Chain DOFs (CH rows [J, B_j, K to previous, B_k to previous]): input dyno, coupling,
-    crank sections (CYL rows [dof, phase offset rad]), flange, transducer. The input dyno
-    applies setpoint[n] + integral control of the measured output torque (the rig
-    controlled the mean on the generator's output, [thesis] §4.3.1). Each crank section
-    carries one cylinder: gas torque, reciprocating inertia (effective inertia J + m s'^2
-    and velocity term -m s' s'' omega^2) and ring + bearing friction.
+    crank sections (CYL rows [dof, phase offset rad]), flange, transducer. Each crank
+    section carries one cylinder: gas torque, reciprocating inertia (effective inertia
+    J + m s'^2 and velocity term -m s' s'' omega^2) and ring + bearing friction. The
+    input dyno applies setpoint [N m] + PE[_E_KI] z (z: integral of the set point minus
+    the link torque [N m s], kept by the caller) - PE[_E_DDYNO] v_dyno.
 
-    Mode 0: the transducer drives a stiff propshaft to a held output dyno (KLINK/BLINK).
-    Mode 1: it drives J_pri of a linear downstream system (damper + rig) integrated by
-    implicit Euler with AINV = (M + dt C + dt^2 K)^-1, MD = diag(M), KD = K.
-    Returns (status, step): 0 ok, 1 NaN, 2 runaway speed.
+    The link shaft (PE[_E_KLINK], PE[_E_BLINK]) runs from the transducer to a body at
+    angle qd [rad] and speed vd [rad/s] (both relative to the nominal-speed frame): the
+    held output dyno of the stiff-shaft test (qd = vd = 0) or the damper's input DOF.
+    The torque is taken at the start of the step, so the caller applies the same value
+    to that body. gas_scale: factor on the gas pressure above atmosphere [-] (start-up
+    ramp). F, extra: scratch of the chain's length; OUT: scratch of EO_SIZE receiving the
+    channels of the start-of-step state (EO_*).
     """
     n = q.shape[0]
-    nd = qd.shape[0]
-    nsteps = setpoint.shape[0]
     dt = PE[_E_DT]
     om0 = PE[_E_OMEGA0]
-    mode = PE[_E_MODE]
+    last = n - 1
+    for i in range(n):
+        F[i] = -CH[i, 1] * (om0 + v[i])
+        extra[i] = 0.0
+    for i in range(1, n):
+        ts = CH[i, 2] * (q[i - 1] - q[i]) + CH[i, 3] * (v[i - 1] - v[i])
+        F[i - 1] -= ts
+        F[i] += ts
+    tg = 0.0
+    ti = 0.0
+    tf = 0.0
+    p1 = 0.0
+    pmax = 0.0
+    for c in range(CYL.shape[0]):
+        d = int(CYL[c, 0])
+        th = om0 * t + q[d] + CYL[c, 1]
+        om = om0 + v[d]
+        a, b, fr, jx, p = engine_cylinder_torques(th, om, PE, gas_scale)
+        F[d] += a + b + fr
+        extra[d] += jx
+        tg += a
+        ti += b
+        tf += fr
+        if c == 0:
+            p1 = p
+        if p > pmax:
+            pmax = p
+    tl = PE[_E_KLINK] * (q[last] - qd) + PE[_E_BLINK] * (v[last] - vd)
+    F[last] -= tl
+    tdyno = setpoint + PE[_E_KI] * z - PE[_E_DDYNO] * v[0]
+    F[0] += tdyno
+    OUT[EO_TDYNO] = tdyno
+    OUT[EO_W_TRANS] = om0 + v[last]
+    OUT[EO_THETA1] = om0 * t + q[int(CYL[0, 0])] + CYL[0, 1]
+    OUT[EO_P1] = p1
+    OUT[EO_TGAS] = tg
+    OUT[EO_TINER] = ti
+    OUT[EO_TFRIC] = tf
+    OUT[EO_PMAX] = pmax
+    for i in range(n):
+        v[i] += dt * F[i] / (CH[i, 0] + extra[i])
+    for i in range(n):
+        q[i] += dt * v[i]
+    return tl
+
+
+@njit(inline="always", **JIT)
+def engine_record(rec, irec, t, tl, tout, pmax, OUT):
+    """Row ``irec`` of the generator record (columns ER_*)."""
+    rec[irec, ER_T] = t
+    rec[irec, ER_TLINK] = tl
+    rec[irec, ER_TDYNO] = OUT[EO_TDYNO]
+    rec[irec, ER_W_TRANS] = OUT[EO_W_TRANS]
+    rec[irec, ER_THETA1] = OUT[EO_THETA1]
+    rec[irec, ER_P1] = OUT[EO_P1]
+    rec[irec, ER_TGAS] = OUT[EO_TGAS]
+    rec[irec, ER_TINER] = OUT[EO_TINER]
+    rec[irec, ER_TFRIC] = OUT[EO_TFRIC]
+    rec[irec, ER_TOUT] = tout
+    rec[irec, ER_PMAX] = pmax
+
+
+@njit(inline="always", **JIT)
+def engine_diverged(v, PE):
+    """0 if the chain's speeds are finite and below PE[_E_VMAX], else 1 (NaN) or 2 (runaway)."""
+    for i in range(v.shape[0]):
+        if not (v[i] == v[i]):
+            return 1
+        if abs(v[i]) > PE[_E_VMAX]:
+            return 2
+    return 0
+
+
+@njit(**JIT)
+def engine_integrate(q, v, setpoint, gas_scale, PE, CH, CYL, rec_every, rec):
+    """March the pulsation generator alone ``len(setpoint)`` steps: the transducer drives
+    a torsionally stiff propshaft to a held output dyno (PE[_E_KLINK], PE[_E_BLINK]),
+    the "pulsation generator only" tests of [thesis] §4.3.1. Coupled to the damper the
+    chain is marched by :func:`integrate` instead.
+
+    setpoint[n]: mean torque set point [N m], gas_scale[n]: gas ramp [-] at t = n dt; the
+    input dyno adds integral control of the measured output torque (the rig controlled
+    the mean on the generator's output, [thesis] §4.3.1). Every ``rec_every`` steps a row
+    of ``rec`` (columns ER_*) is written. Returns (status, step): 0 ok, 1 NaN, 2 runaway
+    speed.
+    """
+    n = q.shape[0]
+    nsteps = setpoint.shape[0]
+    dt = PE[_E_DT]
     F = np.zeros(n)
     extra = np.zeros(n)
-    rhs_d = np.zeros(nd)
+    OUT = np.zeros(EO_SIZE)
     z = 0.0
     irec = 0
     pmax = 0.0
-    last = n - 1
-    oa = int(PE[_E_OUT_A])
-    ob = int(PE[_E_OUT_B])
     for step in range(nsteps):
         t = step * dt
-        for i in range(n):
-            F[i] = -CH[i, 1] * (om0 + v[i])
-            extra[i] = 0.0
-        for i in range(1, n):
-            ts = CH[i, 2] * (q[i - 1] - q[i]) + CH[i, 3] * (v[i - 1] - v[i])
-            F[i - 1] -= ts
-            F[i] += ts
-        tg = 0.0
-        ti = 0.0
-        tf = 0.0
-        p1 = 0.0
-        for c in range(CYL.shape[0]):
-            d = int(CYL[c, 0])
-            th = om0 * t + q[d] + CYL[c, 1]
-            om = om0 + v[d]
-            a, b, fr, jx, p = engine_cylinder_torques(th, om, PE, gas_scale[step])
-            F[d] += a + b + fr
-            extra[d] += jx
-            tg += a
-            ti += b
-            tf += fr
-            if c == 0:
-                p1 = p
-            if p > pmax:
-                pmax = p
-        if mode > 0.5:
-            tl = PE[_E_KLINK] * (q[last] - qd[0]) + PE[_E_BLINK] * (v[last] - vd[0])
-        else:
-            tl = PE[_E_KLINK] * q[last] + PE[_E_BLINK] * v[last]
-        F[last] -= tl
-        tdyno = setpoint[step] + PE[_E_KI] * z - PE[_E_DDYNO] * v[0]
-        F[0] += tdyno
-        tout = tl
-        if mode > 0.5 and nd > 0:
-            kb = 0.0 if ob < 0 else qd[ob]
-            vb = 0.0 if ob < 0 else vd[ob]
-            tout = PE[_E_OUT_K] * (qd[oa] - kb) + PE[_E_OUT_C] * (vd[oa] - vb)
+        tl = engine_step(q, v, t, setpoint[step], gas_scale[step], z, 0.0, 0.0, PE, CH, CYL, F, extra, OUT)
+        if OUT[EO_PMAX] > pmax:
+            pmax = OUT[EO_PMAX]
         if step % rec_every == 0 and irec < rec.shape[0]:
-            rec[irec, ER_T] = t
-            rec[irec, ER_TLINK] = tl
-            rec[irec, ER_TDYNO] = tdyno
-            rec[irec, ER_W_TRANS] = om0 + v[last]
-            rec[irec, ER_THETA1] = om0 * t + q[int(CYL[0, 0])] + CYL[0, 1]
-            rec[irec, ER_P1] = p1
-            rec[irec, ER_TGAS] = tg
-            rec[irec, ER_TINER] = ti
-            rec[irec, ER_TFRIC] = tf
-            rec[irec, ER_TOUT] = tout
-            rec[irec, ER_PMAX] = pmax
+            engine_record(rec, irec, t, tl, tl, pmax, OUT)
             pmax = 0.0
             irec += 1
-        for i in range(n):
-            v[i] += dt * F[i] / (CH[i, 0] + extra[i])
         z += dt * (setpoint[step] - tl)
-        if mode > 0.5 and nd > 0:
-            for i in range(nd):
-                acc = 0.0
-                for j in range(nd):
-                    acc += KD[i, j] * qd[j]
-                rhs_d[i] = MD[i] * vd[i] - dt * acc
-            rhs_d[0] += dt * tl
-            for i in range(nd):
-                acc = 0.0
-                for j in range(nd):
-                    acc += AINV[i, j] * rhs_d[j]
-                vd[i] = acc
-            for i in range(nd):
-                qd[i] += dt * vd[i]
-        for i in range(n):
-            q[i] += dt * v[i]
         if step % 256 == 0:
-            for i in range(n):
-                if not (v[i] == v[i]):
-                    return 1, step
-                if abs(v[i]) > PE[_E_VMAX]:
-                    return 2, step
+            st = engine_diverged(v, PE)
+            if st != 0:
+                return st, step
     return 0, nsteps
+
+
+def no_generator():
+    """The generator arguments of :func:`integrate` when no pulsation generator drives
+    the damper (empty arrays of the right types)."""
+    z1 = np.zeros(0)
+    return z1, z1, z1, z1, z1, np.zeros((0, 4)), np.zeros((0, 2)), np.zeros((0, NEREC))
