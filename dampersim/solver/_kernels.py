@@ -197,6 +197,12 @@ def makkar(v, g1, g2, g3, g4, g5, g6):
     mu = g1 (tanh(g2 v) - tanh(g3 v)) + g4 tanh(g5 v) + g6 v."""
     if g2 == 10.0 * g3 and g5 == g2:
         return makkar_fast(v, g1, g2, g3, g4, g6)
+    return makkar_general(v, g1, g2, g3, g4, g5, g6)
+
+
+@njit(inline="always", **JIT)
+def makkar_general(v, g1, g2, g3, g4, g5, g6):
+    """:func:`makkar` for any coefficients: three tanh terms."""
     a = fast_tanh(g2 * v)
     b = fast_tanh(g3 * v)
     c = fast_tanh(g5 * v)
@@ -492,7 +498,7 @@ def contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU):
             DMU[c] = dmu
     else:
         for c in range(XS.shape[0]):
-            mu, dmu = makkar(XS[c], g1, g2, g3, g4, g5, g6)
+            mu, dmu = makkar_general(XS[c], g1, g2, g3, g4, g5, g6)
             MU[c] = mu
             DMU[c] = dmu
     for c in range(nc):
@@ -500,7 +506,7 @@ def contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU):
 
 
 @njit(**LEAF)
-def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU):
+def friction_step(v, v0, J, CI, SG, PG, dt, W, HS):
     """Friction impulses for one step, applied to v in place; returns dissipation [J].
 
     The linearised friction of every contact is solved implicitly together with the two
@@ -511,7 +517,9 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU):
     that grows with the springs' share of the housings' inertia. The dissipation is the
     work of the friction torques on the end-of-step slips, the speeds that move the
     positions; measured so, the energy balance closes. W: scratch of length
-    2 n_contacts + 2 n_singles + 6 n_pairs.
+    2 n_contacts + 2 n_singles + 6 n_pairs whose first 2 n_contacts entries hold the
+    step's linearised contact laws (:func:`contact_laws`, computed once per step; a
+    re-solve after a hardstop release reuses them).
 
     HS = (c0, f0, c1, f1) couples the hardstop contacts into the same solve: contact 0
     (outer set, J_pri-J_sec) and 1 (inner set, J_sec-J_ter) pass the torque
@@ -522,7 +530,6 @@ def friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU):
     """
     nc = CI.shape[0]
     ns = SG.shape[0]
-    contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU)
     ws = 2 * nc  # per single: alpha, beta (v_m = alpha + beta v_b)
     wp = ws + 2 * ns  # per pair: vo = o0 + o1 v1 + o2 v2, vi = i0 + i1 v1 + i2 v2
     # housing system A [v1; v2] = R for J_sec (1) and J_ter (2)
@@ -844,7 +851,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     Pulsation generator input ([thesis] §4.2-4.3, model-spec §2 "optional input chain"),
     on when ``gq`` is not empty (else pass :func:`no_generator`): the generator chain
     (state gq, gv; arrays PE, CH, CYL of :mod:`dampersim.solver.engine_layout`, whose
-    step PE[_E_DT] must equal P[P_DT]) is marched with the damper by :func:`engine_step`,
+    step PE[E_DT] must equal P[P_DT]) is marched with the damper by :func:`engine_step`,
     its set point gsetpoint[n] [N m] and gas ramp ggas[n] [-] indexed like ``torque``.
     Its link shaft drives the damper's input DOF P[P_INPUT]: the link torque, taken at
     the start of each step, is added to torque[n] on that DOF and is the reaction on the
@@ -975,16 +982,17 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
         # 2) friction: each spring mass (the two masses of a nested pair together) is
         #    solved implicitly in its slip speeds, the housing bodies' speeds known
         #    with the hardstop contacts in the same implicit solve
+        contact_laws(v, v0, FN, P, CI, CF, FW, XS, MU, DMU)
         closed = hs_on and hardstop_coefficients(q, P, dt, HS)
         if closed:
             for i in range(ndof):
                 vb[i] = v[i]
-        ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU)
+        ef = friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
         if closed:
             if hardstop_release(q, v, P, HS):
                 for i in range(ndof):
                     v[i] = vb[i]
-                ef = friction_step(v, v0, FN, P, J, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU)
+                ef = friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
             e_damp += hardstop_dissipation(P, dt, HS, vb, v)
         e_fric += ef
         if clutch:
@@ -1133,29 +1141,29 @@ def clutch_step(v, v0, P, J, dt):
 # =====================================================================================
 
 # engine scalar vector PE (must match dampersim.solver.engine_layout)
-_E_OMEGA0 = 0
-_E_DT = 1
-_E_PC = 2
-_E_PATM = 3
-_E_GAMMA = 4
-_E_AREA = 5
-_E_R = 6
-_E_L = 7
-_E_VC = 8
-_E_VBDC = 9
-_E_MREC = 10
-_E_RVISC = 11
-_E_RMU = 12
-_E_RTENS = 13
-_E_RBACK = 14  # pi D h_ring [m^2]
-_E_VREF = 15
-_E_BEAR = 16
-_E_KI = 17
-_E_MODE = 18  # 0: alone on a stiff shaft to a held output dyno; 1: link shaft into the damper's input DOF
-_E_KLINK = 19  # stiffness of the shaft leaving the transducer [N m/rad]
-_E_BLINK = 20  # its damping [N m s/rad]
-_E_VMAX = 21
-_E_DDYNO = 22  # active damping of the input dyno's torque control on its speed deviation [N m s/rad]
+E_OMEGA0 = 0
+E_DT = 1
+E_PC = 2
+E_PATM = 3
+E_GAMMA = 4
+E_AREA = 5
+E_R = 6
+E_L = 7
+E_VC = 8
+E_VBDC = 9
+E_MREC = 10
+E_RVISC = 11
+E_RMU = 12
+E_RTENS = 13
+E_RBACK = 14  # pi D h_ring [m^2]
+E_VREF = 15
+E_BEAR = 16
+E_KI = 17
+E_KLINK = 18  # stiffness of the shaft leaving the transducer [N m/rad]
+E_BLINK = 19  # its damping [N m s/rad]
+E_VMAX = 20  # divergence threshold on the chain's relative speeds [rad/s]
+E_DDYNO = 21  # active damping of the input dyno's torque control on its speed deviation [N m s/rad]
+PE_SIZE = 22
 
 # engine record columns
 ER_T = 0
@@ -1200,39 +1208,39 @@ def crank_slider(th, r, L):
 def cylinder_pressure(s, PE):
     """Polytropic air-spring pressure P = P_c (V_BDC / V)^gamma [Pa] (model-spec §8: the
     physical form; the thesis's Eq. 1 and 3 are misprinted)."""
-    vol = PE[_E_VC] + PE[_E_AREA] * s
-    return PE[_E_PC] * (PE[_E_VBDC] / vol) ** PE[_E_GAMMA]
+    vol = PE[E_VC] + PE[E_AREA] * s
+    return PE[E_PC] * (PE[E_VBDC] / vol) ** PE[E_GAMMA]
 
 
 @njit(**LEAF)
 def engine_cylinder_torques(th, om, PE, gas_scale):
     """(gas, inertia-velocity, friction torque [N m], effective extra inertia [kg m^2],
     pressure [Pa]) of one cylinder at crank angle th [rad] and speed om [rad/s]."""
-    s, ds, dds = crank_slider(th, PE[_E_R], PE[_E_L])
+    s, ds, dds = crank_slider(th, PE[E_R], PE[E_L])
     p = cylinder_pressure(s, PE)
-    pg = gas_scale * (p - PE[_E_PATM])
-    t_gas = pg * PE[_E_AREA] * ds
-    m = PE[_E_MREC]
+    pg = gas_scale * (p - PE[E_PATM])
+    t_gas = pg * PE[E_AREA] * ds
+    m = PE[E_MREC]
     t_in = -m * ds * dds * om * om
     vp = ds * om
-    f_ring = PE[_E_RVISC] * vp + PE[_E_RMU] * (PE[_E_RTENS] + max(pg, 0.0) * PE[_E_RBACK]) * fast_tanh(vp / PE[_E_VREF])
-    t_fr = -f_ring * ds - PE[_E_BEAR] * om
-    return t_gas, t_in, t_fr, m * ds * ds, PE[_E_PATM] + pg
+    f_ring = PE[E_RVISC] * vp + PE[E_RMU] * (PE[E_RTENS] + max(pg, 0.0) * PE[E_RBACK]) * fast_tanh(vp / PE[E_VREF])
+    t_fr = -f_ring * ds - PE[E_BEAR] * om
+    return t_gas, t_in, t_fr, m * ds * ds, PE[E_PATM] + pg
 
 
 @njit(**LEAF)
 def engine_step(q, v, t, setpoint, gas_scale, z, qd, vd, PE, CH, CYL, F, extra, OUT):
-    """Advance the pulsation generator chain one step of PE[_E_DT] (symplectic Euler)
+    """Advance the pulsation generator chain one step of PE[E_DT] (symplectic Euler)
     from time t [s]; returns the torque [N m] of the shaft leaving the transducer.
 
     Chain DOFs (CH rows [J, B_j, K to previous, B_k to previous]): input dyno, coupling,
     crank sections (CYL rows [dof, phase offset rad]), flange, transducer. Each crank
     section carries one cylinder: gas torque, reciprocating inertia (effective inertia
     J + m s'^2 and velocity term -m s' s'' omega^2) and ring + bearing friction. The
-    input dyno applies setpoint [N m] + PE[_E_KI] z (z: integral of the set point minus
-    the link torque [N m s], kept by the caller) - PE[_E_DDYNO] v_dyno.
+    input dyno applies setpoint [N m] + PE[E_KI] z (z: integral of the set point minus
+    the link torque [N m s], kept by the caller) - PE[E_DDYNO] v_dyno.
 
-    The link shaft (PE[_E_KLINK], PE[_E_BLINK]) runs from the transducer to a body at
+    The link shaft (PE[E_KLINK], PE[E_BLINK]) runs from the transducer to a body at
     angle qd [rad] and speed vd [rad/s] (both relative to the nominal-speed frame): the
     held output dyno of the stiff-shaft test (qd = vd = 0) or the damper's input DOF.
     The torque is taken at the start of the step, so the caller applies the same value
@@ -1241,8 +1249,8 @@ def engine_step(q, v, t, setpoint, gas_scale, z, qd, vd, PE, CH, CYL, F, extra, 
     channels of the start-of-step state (EO_*).
     """
     n = q.shape[0]
-    dt = PE[_E_DT]
-    om0 = PE[_E_OMEGA0]
+    dt = PE[E_DT]
+    om0 = PE[E_OMEGA0]
     last = n - 1
     for i in range(n):
         F[i] = -CH[i, 1] * (om0 + v[i])
@@ -1270,9 +1278,9 @@ def engine_step(q, v, t, setpoint, gas_scale, z, qd, vd, PE, CH, CYL, F, extra, 
             p1 = p
         if p > pmax:
             pmax = p
-    tl = PE[_E_KLINK] * (q[last] - qd) + PE[_E_BLINK] * (v[last] - vd)
+    tl = PE[E_KLINK] * (q[last] - qd) + PE[E_BLINK] * (v[last] - vd)
     F[last] -= tl
-    tdyno = setpoint + PE[_E_KI] * z - PE[_E_DDYNO] * v[0]
+    tdyno = setpoint + PE[E_KI] * z - PE[E_DDYNO] * v[0]
     F[0] += tdyno
     OUT[EO_TDYNO] = tdyno
     OUT[EO_W_TRANS] = om0 + v[last]
@@ -1307,11 +1315,11 @@ def engine_record(rec, irec, t, tl, tout, pmax, OUT):
 
 @njit(inline="always", **JIT)
 def engine_diverged(v, PE):
-    """0 if the chain's speeds are finite and below PE[_E_VMAX], else 1 (NaN) or 2 (runaway)."""
+    """0 if the chain's speeds are finite and below PE[E_VMAX], else 1 (NaN) or 2 (runaway)."""
     for i in range(v.shape[0]):
         if not (v[i] == v[i]):
             return 1
-        if abs(v[i]) > PE[_E_VMAX]:
+        if abs(v[i]) > PE[E_VMAX]:
             return 2
     return 0
 
@@ -1319,7 +1327,7 @@ def engine_diverged(v, PE):
 @njit(**JIT)
 def engine_integrate(q, v, setpoint, gas_scale, PE, CH, CYL, rec_every, rec):
     """March the pulsation generator alone ``len(setpoint)`` steps: the transducer drives
-    a torsionally stiff propshaft to a held output dyno (PE[_E_KLINK], PE[_E_BLINK]),
+    a torsionally stiff propshaft to a held output dyno (PE[E_KLINK], PE[E_BLINK]),
     the "pulsation generator only" tests of [thesis] §4.3.1. Coupled to the damper the
     chain is marched by :func:`integrate` instead.
 
@@ -1331,7 +1339,7 @@ def engine_integrate(q, v, setpoint, gas_scale, PE, CH, CYL, rec_every, rec):
     """
     n = q.shape[0]
     nsteps = setpoint.shape[0]
-    dt = PE[_E_DT]
+    dt = PE[E_DT]
     F = np.zeros(n)
     extra = np.zeros(n)
     OUT = np.zeros(EO_SIZE)
