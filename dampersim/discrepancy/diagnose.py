@@ -13,11 +13,13 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from dampersim.discrepancy import drive
 from dampersim.discrepancy.effects import EFFECTS, NAMES, info, parameters_of, with_effect
 from dampersim.errors import InputError
+
+#: fewest valid torsional test points a diagnosis accepts (every third is held out)
+MIN_TORSIONAL_POINTS = 3
 
 #: estimated parameters of [thesis] §6.1 re-fitted by the calibration (log scale factors)
 CALIBRATION = {
@@ -181,8 +183,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     system = system or default_parameters()
     cands = list(candidates or NAMES)
     pts = campaign.torsional
-    if len(pts) < 3:
-        raise InputError(f"campaign {campaign.name}: {len(pts)} valid torsional points; the diagnosis needs at least 3")
+    if len(pts) < MIN_TORSIONAL_POINTS:
+        raise InputError(f"campaign {campaign.name}: {len(pts)} valid torsional points; the diagnosis needs at "
+                         f"least {MIN_TORSIONAL_POINTS}")
     report = progress or (lambda f, s: None)
     held = [i for i in range(len(pts)) if i % 3 == 1]
     train = [i for i in range(len(pts)) if i % 3 != 1]
@@ -227,10 +230,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             dx = _lstsq_bounded(jac, r, x)
             # accept the Gauss-Newton step, or a halved or quartered one if the model's
             # response is too non-linear for the full step (friction, knee crossings)
+            cost = _cal_cost(_resid(y_tr, meas[train]).ravel() * wtr, x)
             for frac in CAL_STEP_FRACTIONS:
                 xn = x + frac * dx
                 yn = _orders_of(runner, calibrated_system(system, xn), ptr)
-                if _cal_cost(_resid(yn, meas[train]).ravel() * wtr, xn) < _cal_cost(_resid(y_tr, meas[train]).ravel() * wtr, x):
+                if _cal_cost(_resid(yn, meas[train]).ravel() * wtr, xn) < cost:
                     x, y_tr = xn, yn
                     break
             else:
@@ -246,16 +250,15 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # 4) name: signature screen (one run per candidate at its typical magnitude),
         # linearised re-calibration, then a magnitude search for the shortlist
         screen = {}
+        r = (meas[train] - y_tr).ravel()
         for j, name in enumerate(cands):
             report(0.40 + 0.2 * j / len(cands), f"name: signature screen of {name}")
             e = info(name)
             ye = _orders_of(runner, with_effect(cal, name, {e.magnitude: e.magnitudes[1]}), ptr)
             d = (ye - y_tr).ravel()
-            r = (meas[train] - y_tr).ravel()
             A = np.column_stack([jac_u, d]) if jac is not None else d[:, None]
             coef, *_ = np.linalg.lstsq(A * wtr[:, None], r * wtr, rcond=None)
             screen[name] = {"fit_rms": _rms(r - A @ coef), "signature_rms": _rms(d), "scale": float(coef[-1])}
-        r = (meas[train] - y_tr).ravel()
         base_fit = _rms(r - (jac_u @ np.linalg.lstsq(jac, r * wtr, rcond=None)[0] if jac is not None else 0))
         order = sorted(cands, key=lambda n: screen[n]["fit_rms"])
         shortlisted = [n for n in order if screen[n]["scale"] > 0.05][:shortlist] or order[:1]
@@ -281,6 +284,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             # in log magnitude): effects respond non-linearly to their magnitude, and the
             # recovered value should be good to a few per cent, not to the grid spacing
             lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
+            from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
+
             minimize_scalar(lambda u: fit_at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
                             options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})
             fit, m, dxc = min(tried.values(), key=lambda t: t[0])

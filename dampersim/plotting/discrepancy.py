@@ -11,21 +11,23 @@ from plotly.subplots import make_subplots
 from dampersim.plotting import theme
 
 STAGES = ("before", "calibrated", "after")
+STAGE_LABELS = {"before": "model as given", "calibrated": "calibrated", "after": "augmented"}
 
 
 def gap_figure(diag, title: str | None = "Held-out gap") -> go.Figure:
     """Bars: held-out gap before, after calibration, after augmentation, with the noise floor."""
     vals = [diag.gap_before_nm, diag.gap_calibrated_nm, diag.gap_after_nm]
-    fig = go.Figure(go.Bar(x=["model as given", "calibrated", "augmented"], y=vals,
+    fig = go.Figure(go.Bar(x=[STAGE_LABELS[s] for s in STAGES], y=vals,
                            text=[f"{v:.2f}" for v in vals], textposition="outside"))
     fig.add_hline(y=diag.noise_floor_nm, line_dash="dash", annotation_text="noise floor")
+    fig.update_xaxes(title_text="model stage (categories, no unit)")
     fig.update_yaxes(title_text="RMS order error, orders 1-8 [N m]")
     return theme.apply(fig, title)
 
 
 def residual_map_figure(diag, title: str | None = "Where the model disagrees") -> go.Figure:
     """RMS order error per test point over (speed, mean torque), one panel per stage."""
-    fig = make_subplots(rows=1, cols=3, subplot_titles=("model as given", "calibrated", "augmented"), shared_yaxes=True)
+    fig = make_subplots(rows=1, cols=3, subplot_titles=tuple(STAGE_LABELS[s] for s in STAGES), shared_yaxes=True)
     vmax = max(max(np.sqrt(np.mean(np.square(v))) for v in diag.residuals[s].values()) for s in STAGES) or 1.0
     for c, stage in enumerate(STAGES, start=1):
         pts = diag.points
@@ -58,6 +60,7 @@ def ranking_figure(diag, title: str | None = "Candidate effects (held-out gap)")
     fig = go.Figure(go.Bar(x=[r["effect"] for r in rows], y=[r["gap_held_out_nm"] for r in rows]))
     fig.add_hline(y=diag.gap_calibrated_nm, line_dash="dot", annotation_text="calibrated, no effect")
     fig.add_hline(y=diag.noise_floor_nm, line_dash="dash", annotation_text="noise floor")
+    fig.update_xaxes(title_text="candidate effect (fitted ones only)")
     fig.update_yaxes(title_text="held-out gap [N m]")
     return theme.apply(fig, title)
 
@@ -74,9 +77,6 @@ def overlay_figure(diag, point_id: str, title: str | None = None) -> go.Figure:
     return theme.apply(fig, title or f"{point_id}: output orders")
 
 
-STAGE_LABELS = {"before": "model as given", "calibrated": "calibrated", "after": "augmented"}
-
-
 def _group_rms(values, keys) -> tuple:
     """RMS of ``values`` per distinct key -> (sorted keys, RMS per key)."""
     keys = np.asarray(keys, dtype=float)
@@ -91,12 +91,12 @@ def residual_profile_figure(diag, title: str | None = "Where the error lies: by 
     fig = make_subplots(rows=1, cols=3, shared_yaxes=True, horizontal_spacing=0.05,
                         subplot_titles=("by speed", "by mean torque", "by engine order"))
     pts = diag.points
+    n_orders = len(diag.residuals[STAGES[0]][pts[0]["id"]])
+    speeds = np.repeat([p["speed_rpm"] for p in pts], n_orders)
+    torques = np.repeat([p["mean_torque_nm"] for p in pts], n_orders)
+    orders = np.tile(np.arange(1, n_orders + 1), len(pts))
     for i, stage in enumerate(STAGES):
         res = np.array([diag.residuals[stage][p["id"]] for p in pts], dtype=float)  # points x orders [N m]
-        n_orders = res.shape[1]
-        speeds = np.repeat([p["speed_rpm"] for p in pts], n_orders)
-        torques = np.repeat([p["mean_torque_nm"] for p in pts], n_orders)
-        orders = np.tile(np.arange(1, n_orders + 1), len(pts))
         colour = theme.COLOURWAY[i % len(theme.COLOURWAY)]
         for col, (keys, unit) in enumerate(((speeds, "rpm"), (torques, "N m"), (orders, "")), start=1):
             x, y = _group_rms(res.ravel(), keys)
