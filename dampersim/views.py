@@ -26,8 +26,8 @@ measured campaign (:mod:`dampersim.discrepancy`) keyed by a hash of the campaign
 
 **Cache.** Views are cached in diskcache under ``cache_dir()/"views"`` keyed by a SHA-256
 of the view name, the complete parameter set, the page state, the package version and the
-source hash of the simulation code (:func:`dampersim.sweeps.cache.kernel_source_hash`), so
-a physics change can never return a stale view. Sweep test points are cached per point by
+source hash of the simulation and view code (:func:`views_source_hash`), so a physics
+change can never return a stale view. Sweep test points are cached per point by
 :mod:`dampersim.sweeps` as usual, so a cancelled sweep keeps its finished points.
 """
 
@@ -35,7 +35,9 @@ from __future__ import annotations
 
 import base64
 import binascii
+import copy
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -751,34 +753,25 @@ def _canonical(obj):
 VIEW_FORMAT = 1
 
 
-def _views_source_hash() -> str:
-    from dampersim.sweeps.cache import kernel_source_hash
-
-    here = Path(__file__).resolve()
-    h = hashlib.sha256(kernel_source_hash().encode())
-    for rel in ("views.py", "plotting/figures.py", "plotting/theme.py", "analysis/colourmap.py",
-                "analysis/maps.py", "analysis/hysteresis.py", "excitation/ramps.py", "excitation/torque_curve.py"):
-        p = here.parent / rel
-        if p.exists():
-            h.update(rel.encode())
-            h.update(p.read_bytes())
-    return h.hexdigest()
-
-
-_SOURCE_HASH: dict = {}
+#: package files (relative to ``dampersim/``) that shape a view besides the simulation's
+#: (:data:`dampersim.sweeps.cache.SOURCE_FILES`)
+VIEW_SOURCES = ("views.py", "plotting/figures.py", "plotting/theme.py", "analysis/colourmap.py", "analysis/maps.py",
+                "analysis/hysteresis.py", "excitation/ramps.py", "excitation/torque_curve.py")
 
 
 def views_source_hash() -> str:
-    """Hash of the code that shapes a view (read once per process)."""
-    if "h" not in _SOURCE_HASH:
-        _SOURCE_HASH["h"] = _views_source_hash()
-    return _SOURCE_HASH["h"]
+    """Hash of the code that shapes a view: the simulation's source files and
+    :data:`VIEW_SOURCES` (read once per process, by :func:`dampersim.sweeps.cache.source_hash`)."""
+    from dampersim.sweeps.cache import SOURCE_FILES, source_hash
+
+    return source_hash(SOURCE_FILES + VIEW_SOURCES)
 
 
-def view_key(kind: str, system, state: dict) -> str:
+def view_key(kind: str, system, state: dict, source: str | None = None) -> str:
     """SHA-256 key of a view: kind, complete parameter set (labels excluded), page state
     (without the parameter state, which ``system`` already holds), package version and the
-    hash of the simulation, analysis and figure code."""
+    hash of the code behind the view (``source``; default :func:`views_source_hash`, the
+    simulation, analysis and figure code)."""
     from dampersim.parameters import to_dict
 
     doc = {
@@ -786,7 +779,7 @@ def view_key(kind: str, system, state: dict) -> str:
         "format": VIEW_FORMAT,
         "kind": kind,
         "version": dampersim.__version__,
-        "source": views_source_hash(),
+        "source": views_source_hash() if source is None else source,
         "parameters": {k: v for k, v in to_dict(system).items() if k not in _LABEL_NAMES},
         # numbers as floats: a state that went through JSON (a browser store) may bring 30 for 30.0
         "state": {k: (float(v) if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) else v)
@@ -1726,6 +1719,27 @@ def params_for_system(system) -> dict:
     return {"set": store_parameter_set(system), "overrides": {}}
 
 
+def _decode_upload(contents, name: str, accepted: str, max_bytes: int, size_text, *, size_accepted: str | None = None,
+                   base64_accepted: bool = True) -> bytes:
+    """The bytes of a browser upload (``data:...;base64,...``).
+
+    Raises InputError naming the file (``name``) for an upload without content, data
+    that is not base64 and more than ``max_bytes`` bytes (``size_text(n)`` writes the size,
+    ``size_accepted`` replaces ``accepted`` in that message); ``base64_accepted=False``
+    leaves "accepted is ..." out of the base64 message.
+    """
+    if not isinstance(contents, str) or "," not in contents:
+        raise InputError(f"{name}: the upload arrived without content; accepted is {accepted}")
+    try:
+        data = base64.b64decode(contents.split(",", 1)[1], validate=True)
+    except (binascii.Error, ValueError):
+        raise InputError(f"{name}: the upload is not valid base64 data"
+                         + (f"; accepted is {accepted}" if base64_accepted else "")) from None
+    if len(data) > max_bytes:
+        raise InputError(f"{name} is {size_text(len(data))}; accepted is {size_accepted or accepted}")
+    return data
+
+
 def parse_uploaded_parameters(contents, filename: str = "parameters.toml"):
     """A parameter file from a browser upload (``data:...;base64,...``) -> DamperSystem.
 
@@ -1735,15 +1749,9 @@ def parse_uploaded_parameters(contents, filename: str = "parameters.toml"):
     from dampersim.parameters import loads_toml
 
     name = filename or "uploaded file"
-    if not isinstance(contents, str) or "," not in contents:
-        raise InputError(f"{name}: the upload arrived without content; accepted is a TOML parameter file")
-    payload = contents.split(",", 1)[1]
-    try:
-        data = base64.b64decode(payload, validate=True)
-    except (binascii.Error, ValueError):
-        raise InputError(f"{name}: the upload is not valid base64 data") from None
-    if len(data) > MAX_UPLOAD_BYTES:
-        raise InputError(f"{name} is {len(data) / 1024:.0f} kB; accepted is a TOML parameter file up to {MAX_UPLOAD_BYTES // 1024} kB")
+    data = _decode_upload(contents, name, "a TOML parameter file", MAX_UPLOAD_BYTES, lambda n: f"{n / 1024:.0f} kB",
+                          size_accepted=f"a TOML parameter file up to {MAX_UPLOAD_BYTES // 1024} kB",
+                          base64_accepted=False)
     if not data.strip():
         raise InputError(f"{name} is empty; accepted is a TOML parameter file (download one to see the format)")
     try:
@@ -1916,28 +1924,6 @@ def _zip_members(zf, name: str, accepted: str) -> list:
     return members
 
 
-def _check_manifest_paths(folder: Path, name: str) -> None:
-    """Refuse an uploaded manifest whose ``file`` entries leave the campaign folder (an
-    upload may only make the server read its own files)."""
-    import csv
-
-    from dampersim.discrepancy.campaign import MANIFEST
-
-    inside = os.path.realpath(folder)
-    try:
-        with open(folder / MANIFEST, newline="", encoding="utf-8", errors="replace") as fh:
-            for i, row in enumerate(csv.DictReader(fh), start=2):
-                rel = (row.get("file") or "").strip()
-                if not rel:
-                    continue  # reported by the validation
-                target = os.path.realpath(os.path.join(inside, rel))
-                if os.path.isabs(rel) or os.path.commonpath([inside, target]) != inside:
-                    raise InputError(f"{name}: {MANIFEST} row {i} [file]: {rel!r} lies outside the campaign folder; "
-                                     "accepted is a path relative to the folder, e.g. points/tc_1200.parquet")
-    except (OSError, csv.Error):
-        pass  # an unreadable manifest is reported by the validation report
-
-
 def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
     """A campaign zip from a browser upload (``data:...;base64,...``) -> its upload id.
 
@@ -1945,7 +1931,9 @@ def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
     shallowest folder holding a manifest.csv (the zip may hold the folder or its content).
     Raises InputError naming the file and what is accepted: not base64, too large, not a
     zip, damaged, unsafe entries (absolute paths, "..", links), too many or too large
-    files, no manifest.csv or more than one campaign. Nothing is kept of a refused upload.
+    files, no manifest.csv, more than one campaign or manifest entries outside the campaign
+    folder (:func:`dampersim.discrepancy.campaign.paths_outside`). Nothing is kept of a
+    refused upload.
     """
     import io
     import shutil
@@ -1953,20 +1941,13 @@ def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
     import zipfile
     import zlib
 
-    from dampersim.discrepancy.campaign import MANIFEST, read_campaign
+    from dampersim.discrepancy.campaign import MANIFEST, paths_outside, read_campaign
 
     name = filename or "uploaded file"
     accepted = CAMPAIGN_ACCEPTED
-    if not isinstance(contents, str) or "," not in contents:
-        raise InputError(f"{name}: the upload arrived without content; accepted is {accepted}")
-    try:
-        data = base64.b64decode(contents.split(",", 1)[1], validate=True)
-    except (binascii.Error, ValueError):
-        raise InputError(f"{name}: the upload is not valid base64 data; accepted is {accepted}") from None
+    data = _decode_upload(contents, name, accepted, MAX_CAMPAIGN_ZIP_BYTES, lambda n: f"{n / 2**20:.1f} MB")
     if not data:
         raise InputError(f"{name} is empty; accepted is {accepted}")
-    if len(data) > MAX_CAMPAIGN_ZIP_BYTES:
-        raise InputError(f"{name} is {len(data) / 2**20:.1f} MB; accepted is {accepted}")
     buf = io.BytesIO(data)
     if not zipfile.is_zipfile(buf):
         raise InputError(f"{name} is not a zip archive; accepted is {accepted}")
@@ -2003,7 +1984,11 @@ def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
         if len(found) > 1:
             names = ", ".join(str(f.relative_to(tmp)) or "." for f in found)
             raise InputError(f"{name} holds {len(found)} campaigns ({names}); accepted is {accepted}")
-        _check_manifest_paths(found[0], name)
+        outside = paths_outside(found[0])  # an upload may only make the server read its own files
+        if outside:
+            row, rel = outside[0]
+            raise InputError(f"{name}: {MANIFEST} row {row} [file]: {rel!r} lies outside the campaign folder; "
+                             "accepted is a path relative to the folder, e.g. points/tc_1200.parquet")
         try:
             cname = read_campaign(found[0]).name
         except InputError:
@@ -2028,6 +2013,13 @@ def parse_discrepancy_query(query: dict | None, examples: dict) -> tuple:
     notice naming the key, the value, what is accepted and what is used instead; unknown
     keys are ignored. ``state`` = {"campaign": name or None, "upload": id or None}.
     """
+    state, notices, _folder = _discrepancy_query(query, examples)
+    return state, notices
+
+
+def _discrepancy_query(query: dict | None, examples: dict) -> tuple:
+    """:func:`parse_discrepancy_query` plus the campaign folder it resolved (see
+    :func:`discrepancy_folder`): ``(state, notices, folder or None)``."""
     query = dict(query or {})
     notices: list = []
     fallback = default_example(examples)
@@ -2039,11 +2031,11 @@ def parse_discrepancy_query(query: dict | None, examples: dict) -> tuple:
         if not _UPLOAD_ID.match(text):
             notices.append(notice(f"Uploaded campaign (upload={raw!r}) is not an upload id: accepted is the 16 hex digits "
                                   f"the page writes into the link after an upload. Using {used}."))
-        elif upload_folder(text) is None:
+        elif (folder := upload_folder(text)) is None:
             notices.append(notice(f"Uploaded campaign (upload={raw!r}) is not on this server (uploads live in the cache, "
                                   f"which may have been cleared): upload the zip again. Using {used}."))
         else:
-            return {"campaign": None, "upload": text}, notices
+            return {"campaign": None, "upload": text}, notices, folder
     if "campaign" in query:
         raw = _single(query, "campaign", notices, "Example campaign")
         if isinstance(raw, str) and raw in examples:
@@ -2054,14 +2046,16 @@ def parse_discrepancy_query(query: dict | None, examples: dict) -> tuple:
                                   f"Using {used}."))
     if not examples:
         notices.append(notice("No example campaigns are bundled with this installation: upload a campaign.", "info"))
-    return state, notices
+    return state, notices, discrepancy_folder(state, examples)
 
 
 def discrepancy_choice(value, examples: dict) -> tuple:
-    """A campaign dropdown value (example name or ``upload:<id>``) -> ``(state, notices)``."""
+    """A campaign dropdown value (example name or ``upload:<id>``) -> ``(state, notices,
+    folder)``: the state and notices of :func:`parse_discrepancy_query` and the campaign
+    folder (:func:`discrepancy_folder`, resolved once) or None."""
     if isinstance(value, str) and value.startswith(UPLOAD_PREFIX):
-        return parse_discrepancy_query({"upload": value[len(UPLOAD_PREFIX):]}, examples)
-    return parse_discrepancy_query({"campaign": value} if value is not None else {}, examples)
+        return _discrepancy_query({"upload": value[len(UPLOAD_PREFIX):]}, examples)
+    return _discrepancy_query({"campaign": value} if value is not None else {}, examples)
 
 
 def discrepancy_value(state: dict):
@@ -2086,34 +2080,60 @@ def discrepancy_folder(state: dict, examples: dict):
     return Path(path) if path is not None else None
 
 
+def summarise_campaign(camp) -> dict:
+    """Validation report of a campaign already read (a
+    :class:`dampersim.discrepancy.campaign.Campaign`), JSON-ready: see :func:`campaign_summary`."""
+    from dampersim.discrepancy.diagnose import MIN_TORSIONAL_POINTS
+
+    rep = camp.report()
+    return {"name": camp.name, "description": camp.description, "rows": rep["rows"], "valid": len(camp.points),
+            "torsional": len(camp.torsional), "ramps": len(camp.ramps),
+            "record_s": float(sum(p.duration for p in camp.torsional)),
+            "problems": rep["problems"], "error": None, "ready": len(camp.torsional) >= MIN_TORSIONAL_POINTS}
+
+
+def _folder_files(folder: Path) -> tuple:
+    """((relative path, size, mtime_ns), ...) of every file under ``folder`` in a fixed
+    order: the memo key of :func:`campaign_summary` and :func:`campaign_digest`, so a
+    changed, added or removed file gives a new key."""
+    out = []
+    for sub, dirs, files in os.walk(folder):
+        dirs.sort()
+        for f in sorted(files):
+            p = Path(sub) / f
+            try:
+                st = p.stat()
+            except OSError:
+                continue  # gone since the walk
+            out.append((p.relative_to(folder).as_posix(), st.st_size, st.st_mtime_ns))
+    return tuple(out)
+
+
 def campaign_summary(folder) -> dict:
     """Validation report of the campaign in ``folder``, JSON-ready.
 
     {"name", "description", "rows", "valid", "torsional", "ramps", "record_s", "problems"
     (each with file, field, point, message), "error" (a campaign that cannot be read at
     all) and "ready" (enough valid torsional points for the diagnosis)}. Paths in messages
-    are relative to the campaign folder (the server's folders are not shown).
+    are relative to the campaign folder (the server's folders are not shown). Memoised
+    per process on the folder and the size and modification time of its files.
     """
+    folder = Path(folder)
+    return copy.deepcopy(_campaign_summary(str(folder), _folder_files(folder)))
+
+
+@functools.lru_cache(maxsize=32)
+def _campaign_summary(folder: str, _files: tuple) -> dict:
     from dampersim.discrepancy.campaign import read_campaign
 
     folder = Path(folder)
-    base = {"name": folder.name, "description": "", "rows": 0, "valid": 0, "torsional": 0, "ramps": 0, "record_s": 0.0,
-            "problems": [], "error": None, "ready": False}
     try:
         camp = read_campaign(folder)
     except InputError as exc:
         msg = str(exc).replace(str(folder) + os.sep, "").replace(str(folder), folder.name)
-        return {**base, "error": msg}
-    try:
-        meta = json.loads((folder / "campaign.json").read_text(encoding="utf-8"))
-        description = str(meta.get("description", "")) if isinstance(meta, dict) else ""
-    except (OSError, ValueError):
-        description = ""
-    rep = camp.report()
-    return {**base, "name": camp.name, "description": description, "rows": rep["rows"], "valid": len(camp.points),
-            "torsional": len(camp.torsional), "ramps": len(camp.ramps),
-            "record_s": float(sum(p.duration for p in camp.torsional)),
-            "problems": rep["problems"], "ready": len(camp.torsional) >= 3}
+        return {"name": folder.name, "description": "", "rows": 0, "valid": 0, "torsional": 0, "ramps": 0,
+                "record_s": 0.0, "problems": [], "error": msg, "ready": False}
+    return summarise_campaign(camp)
 
 
 def diagnosis_seconds(record_s: float, cores: int | None = None) -> float:
@@ -2125,18 +2145,21 @@ def diagnosis_seconds(record_s: float, cores: int | None = None) -> float:
 
 
 def campaign_digest(folder) -> str:
-    """SHA-256 of every file of a campaign folder (relative path and bytes)."""
+    """SHA-256 of every file of a campaign folder (relative path and bytes); memoised per
+    process on the folder and the size and modification time of its files."""
     folder = Path(folder)
+    return _campaign_digest(str(folder), _folder_files(folder))
+
+
+@functools.lru_cache(maxsize=32)
+def _campaign_digest(folder: str, files: tuple) -> str:
     h = hashlib.sha256()
-    for sub, dirs, files in os.walk(folder):
-        dirs.sort()
-        for f in sorted(files):
-            p = Path(sub) / f
-            h.update(p.relative_to(folder).as_posix().encode() + b"\0")
-            with open(p, "rb") as fh:
-                for chunk in iter(lambda: fh.read(2**20), b""):
-                    h.update(chunk)
-            h.update(b"\0")
+    for rel, _size, _mtime in files:
+        h.update(rel.encode() + b"\0")
+        with open(Path(folder, rel), "rb") as fh:
+            for chunk in iter(lambda: fh.read(2**20), b""):
+                h.update(chunk)
+        h.update(b"\0")
     return h.hexdigest()
 
 
@@ -2156,20 +2179,12 @@ def discrepancy_source_hash() -> str:
 
 
 def discrepancy_key(folder, system=None) -> str:
-    """Cache key of a diagnosis: campaign files, parameter set, options, code and version."""
-    from dampersim.parameters import default_parameters, to_dict
+    """Cache key of a diagnosis: campaign files, parameter set, options, code and version
+    (a :func:`view_key` of kind "discrepancy" with the code of :func:`discrepancy_source_hash`)."""
+    from dampersim.parameters import default_parameters
 
-    system = system or default_parameters()
-    doc = {
-        "schema": "dampersim.discrepancy-view",
-        "format": DISCREPANCY_FORMAT,
-        "version": dampersim.__version__,
-        "source": discrepancy_source_hash(),
-        "campaign": campaign_digest(folder),
-        "parameters": {k: v for k, v in to_dict(system).items() if k not in _LABEL_NAMES},
-        "options": DISCREPANCY_OPTIONS,
-    }
-    return hashlib.sha256(json.dumps(_canonical(doc), sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+    state = {"format": DISCREPANCY_FORMAT, "campaign": campaign_digest(folder), "options": DISCREPANCY_OPTIONS}
+    return view_key("discrepancy", system or default_parameters(), state, source=discrepancy_source_hash())
 
 
 def diagnosis_document(diag) -> dict:
@@ -2218,8 +2233,8 @@ def discrepancy_figures(doc: dict) -> dict:
     from dampersim.plotting import discrepancy as fig
 
     d = diagnosis_from_document(doc)
-    gap = fig.gap_figure(d, None).update_xaxes(title_text="model stage (categories, no unit)")
-    ranking = fig.ranking_figure(d, None).update_xaxes(title_text="candidate effect (fitted ones only)")
+    gap = fig.gap_figure(d, None)
+    ranking = fig.ranking_figure(d, None)
     out = {"gap": _fig(gap), "ranking": _fig(ranking)}
     full = has_point_data(doc)
     out["map"] = _fig(fig.residual_map_figure(d, None)) if full else None
@@ -2315,22 +2330,23 @@ def discrepancy_view(folder, progress=None, cache_only: bool = False, workers=No
     ``progress(fraction, text)`` is passed to the diagnosis. Raises InputError for a
     campaign that cannot be diagnosed.
     """
-    from dampersim.discrepancy.campaign import read_campaign
-    from dampersim.discrepancy.diagnose import diagnose
-
     key = discrepancy_key(folder, system)
     hit = load_view(key)
     if hit is not None or cache_only:
         return hit
+    from dampersim.discrepancy.campaign import read_campaign
+    from dampersim.discrepancy.diagnose import diagnose  # the diagnosis code only once it has to run
+
     t0 = time.perf_counter()
     camp = read_campaign(folder)
+    summary = summarise_campaign(camp)  # the campaign just read, not a second reading
     diag = diagnose(camp, system, workers=workers, progress=progress, **DISCREPANCY_OPTIONS)
     doc = diagnosis_document(diag)
     view = {
         "kind": "discrepancy",
-        "campaign": campaign_summary(folder),
+        "campaign": summary,
         "diagnosis": doc,
-        "summary": {"compute_time_s": time.perf_counter() - t0, "simulations": diag.simulations, "verdict": diag.verdict},
+        "summary": {"compute_time_s": time.perf_counter() - t0, "simulations": diag.simulations},
     }
     return _save_view(key, view)
 
@@ -2375,6 +2391,7 @@ __all__ = [
     "parse_discrepancy_query",
     "discrepancy_query",
     "campaign_summary",
+    "summarise_campaign",
     "discrepancy_key",
     "discrepancy_view",
     "diagnosis_document",

@@ -343,10 +343,13 @@ def progress_text(done, total, cached, elapsed, others=0):
     if 0 < computed < total - cached:
         left = elapsed / computed * (total - done)
         parts.append(f"about {left:.0f} s left")
-    text = " · ".join(parts)
-    if others:
-        text += f" · {others} other sweep{'s' if others > 1 else ''} running on this server: sharing the cores, this takes longer"
-    return text
+    return " · ".join(parts) + others_text(others, "sweep", "running on this server: sharing the cores, this takes longer")
+
+
+def others_text(others: int, noun: str, tail: str) -> str:
+    """" · 2 other sweeps running on this server: …" when ``others`` other runs share the
+    server's cores, else "" (appended to a progress text)."""
+    return f" · {others} other {noun}{'s' if others > 1 else ''} {tail}" if others else ""
 
 
 # --------------------------------------------------------------------------- background work

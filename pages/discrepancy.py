@@ -18,6 +18,7 @@ import dash
 from dash import Input, Output, State, callback, dcc, html, no_update
 
 from dampersim import views
+from dampersim.discrepancy.diagnose import MIN_TORSIONAL_POINTS
 from dampersim.errors import DampersimError
 from pages import _common as C
 
@@ -140,8 +141,8 @@ def report(summary: dict):
     else:
         notes.append(views.notice("No problems found.", "success"))
     if not summary["ready"]:
-        notes.append(views.notice(f"Only {summary['torsional']} valid torsional test point(s): the diagnosis needs at least 3.",
-                                  "error"))
+        notes.append(views.notice(f"Only {summary['torsional']} valid torsional test point(s): the diagnosis needs at least "
+                                  f"{MIN_TORSIONAL_POINTS}.", "error"))
     out = [head, *C.render_notices(notes)]
     if summary["problems"]:
         out.append(C.table([("file", "File"), ("field", "Field"), ("point", "Point"), ("message", "Problem")],
@@ -151,8 +152,7 @@ def report(summary: dict):
 
 def report_for(value):
     examples = views.example_campaigns()
-    state, _notices = views.discrepancy_choice(value, examples)  # refused values: notices come from the request
-    folder = views.discrepancy_folder(state, examples)
+    _state, _notices, folder = views.discrepancy_choice(value, examples)  # refused values: notices come from the request
     if folder is None:
         return C.render_notices([views.notice("No campaign chosen: pick an example or upload a campaign.", "info")])
     try:
@@ -173,9 +173,8 @@ CONTROL_INPUTS = [Input("discrepancy-campaign", "value")]
 
 def request(run, initial, values, base_params, autorun):
     examples = views.example_campaigns()
-    state, notices = views.discrepancy_choice(values[0], examples)
+    state, notices, folder = views.discrepancy_choice(values[0], examples)
     out = {"search": views.discrepancy_query(state), "notices": notices}
-    folder = views.discrepancy_folder(state, examples)
     if folder is None:
         out["status"] = C.render_notices([views.notice("Pick an example campaign or upload one.", "info")])
         return out
@@ -192,8 +191,8 @@ def request(run, initial, values, base_params, autorun):
         return out
     if not summary["ready"]:
         out["status"] = C.render_notices([views.notice(
-            f"This campaign cannot be diagnosed: {summary['torsional']} valid torsional test point(s), at least 3 are "
-            "needed (see the validation report).", "error")])
+            f"This campaign cannot be diagnosed: {summary['torsional']} valid torsional test point(s), at least "
+            f"{MIN_TORSIONAL_POINTS} are needed (see the validation report).", "error")])
         return out
     if run or (initial and autorun):
         out["job"] = {"state": state}
@@ -219,8 +218,7 @@ def job(job_data, progress):
 
         def on_progress(fraction, text):
             reg.beat()
-            others = reg.others()
-            extra = f" · {others} other run{'s' if others > 1 else ''} on this server share the cores" if others else ""
+            extra = C.others_text(reg.others(), "run", "on this server share the cores")
             progress(int(round(100 * fraction)), 100, f"{text} · {time.monotonic() - t0:.0f} s{extra}")
 
         view = views.discrepancy_view(folder, progress=on_progress)

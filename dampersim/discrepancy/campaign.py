@@ -90,6 +90,7 @@ class Campaign:
     points: list
     problems: list
     rows: int = 0
+    description: str = ""  # campaign.json's "description" ("" without one)
 
     @property
     def torsional(self) -> list:
@@ -146,11 +147,14 @@ def read_campaign(path, strict: bool = False) -> Campaign:
     if not os.path.isfile(mpath):
         raise InputError(f"{mpath}: missing; a campaign folder needs {MANIFEST} with columns {', '.join(MANIFEST_COLUMNS)}")
     name = os.path.basename(os.path.abspath(path))
+    description = ""
     meta_path = os.path.join(path, "campaign.json")
     if os.path.isfile(meta_path):
         try:
             with open(meta_path, encoding="utf-8") as fh:
-                name = str(json.load(fh).get("name", name))
+                meta = json.load(fh)
+            name = str(meta.get("name", name))
+            description = str(meta.get("description", ""))
         except (OSError, ValueError, AttributeError):
             pass
     try:
@@ -161,7 +165,7 @@ def read_campaign(path, strict: bool = False) -> Campaign:
     missing = [c for c in MANIFEST_COLUMNS if c not in man.columns]
     if missing:
         problems.append(Problem(MANIFEST, ",".join(missing), f"missing column(s); required are {', '.join(MANIFEST_COLUMNS)}"))
-        camp = Campaign(path, name, [], problems, rows=len(man))
+        camp = Campaign(path, name, [], problems, rows=len(man), description=description)
         if strict:
             raise InputError(camp.report_text())
         return camp
@@ -205,10 +209,34 @@ def read_campaign(path, strict: bool = False) -> Campaign:
             rel = os.path.normpath(os.path.relpath(os.path.join(sub, f), path))
             if f.endswith((".csv", ".parquet")) and rel != MANIFEST and rel not in listed:
                 problems.append(Problem(rel, "file", "time series not listed in the manifest (ignored)"))
-    camp = Campaign(path, name, points, problems, rows=len(man))
+    camp = Campaign(path, name, points, problems, rows=len(man), description=description)
     if strict and problems:
         raise InputError(camp.report_text())
     return camp
+
+
+def paths_outside(path) -> list:
+    """Manifest ``file`` entries of the campaign in folder ``path`` that lie outside the
+    folder (absolute, or leaving it through ".." or a link): ``[(manifest row, entry), ...]``
+    with the row numbered as in :func:`read_campaign`'s report. A missing or unreadable
+    manifest gives ``[]`` (:func:`read_campaign` reports it); so do empty entries."""
+    path = os.fspath(path)
+    inside = os.path.realpath(path)
+    try:
+        man = _read_table(os.path.join(path, MANIFEST))
+    except Exception:  # noqa: BLE001 - reported by read_campaign
+        return []
+    if "file" not in man.columns:
+        return []
+    out = []
+    for i, value in enumerate(man["file"]):
+        rel = str(value).strip() if value == value else ""
+        if not rel:
+            continue
+        target = os.path.realpath(os.path.join(inside, rel))
+        if os.path.isabs(rel) or os.path.commonpath([inside, target]) != inside:
+            out.append((i + 2, rel))
+    return out
 
 
 def _read_point(fpath, rel, pid, kind, rpm, tq, fs):
@@ -324,4 +352,4 @@ def write_campaign(path, points, name: str = "", description: str = "", fmt: str
 
 
 __all__ = ["MANIFEST", "MANIFEST_COLUMNS", "SERIES_COLUMNS", "KINDS", "Problem", "MeasuredPoint", "Campaign",
-           "read_campaign", "write_campaign"]
+           "read_campaign", "paths_outside", "write_campaign"]

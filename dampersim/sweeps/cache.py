@@ -102,16 +102,11 @@ def _read_source_hash(files=SOURCE_FILES) -> str:
     return h.hexdigest()
 
 
-@functools.lru_cache(maxsize=1)
-def _process_source_hash() -> str:
-    return _read_source_hash()
-
-
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=None)  # a handful of file sets per process; never evicted, so each stays pinned
 def source_hash(files: tuple) -> str:
     """SHA-256 of the given package files (paths relative to ``dampersim/``), read once
-    per process: the key ingredient for caches of results other than sweep points."""
-    return _read_source_hash(files)
+    per process: the one memo behind every source hash (sweep points, views, diagnoses)."""
+    return _read_source_hash(tuple(files))
 
 
 def kernel_source_hash() -> str:
@@ -122,11 +117,11 @@ def kernel_source_hash() -> str:
     sweep workers compare their own value with the one the key was built with and refuse
     to deliver a mismatch.
     """
-    return _process_source_hash()
+    return source_hash(SOURCE_FILES)
 
 
 try:  # pin the hash to the code loaded now; a failure is reported when a key is needed
-    _process_source_hash()
+    source_hash(SOURCE_FILES)
 except DampersimError:
     pass
 
