@@ -1,7 +1,7 @@
 """Drive a parameter set with measured test points (the compare step's simulations).
 
-Task functions are module level and take plain picklable arguments so they run in a
-spawn process pool (:func:`run_many`).
+Task functions are module level and take plain picklable arguments so they run in the
+sweeps' process pool (:func:`dampersim.sweeps.executor.process_pool`).
 """
 
 from __future__ import annotations
@@ -110,12 +110,8 @@ def _task(args):
         return {"error": f"{type(exc).__name__}: {exc}"}
 
 
-def _init():
-    os.environ.setdefault("NUMBA_THREADING_LAYER", "forksafe")
-
-
 class Runner:
-    """Runs (system, point) tasks serially or in a spawn process pool; counts simulations."""
+    """Runs (system, point) tasks serially or in a process pool; counts simulations."""
 
     def __init__(self, workers: int | None = None, progress=None):
         self.workers = max(1, int(workers if workers is not None else min(2, os.cpu_count() or 1)))
@@ -125,10 +121,9 @@ class Runner:
 
     def __enter__(self):
         if self.workers > 1:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
+            from dampersim.sweeps.executor import process_pool
 
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=_init)
+            self._pool = process_pool(self.workers)
         return self
 
     def __exit__(self, *exc):

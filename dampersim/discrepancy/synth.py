@@ -198,10 +198,9 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
         fs = sample_rate if kind == "torsional" else ramp_sample_rate
         tasks.append((system, pid, kind, rpm, tq, seed * 1000 + i, record, fs, noise, gains))
     if workers > 1 and len(tasks) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+        from dampersim.sweeps.executor import process_pool
 
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+        with process_pool(workers) as pool:
             measured = list(pool.map(_simulate_truth, tasks))
     else:
         measured = [_simulate_truth(t) for t in tasks]

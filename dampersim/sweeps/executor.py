@@ -226,13 +226,23 @@ def _start_method() -> str:
     return "spawn"
 
 
+def process_pool(workers: int) -> cf.ProcessPoolExecutor:
+    """A pool of ``workers`` processes for kernel work, started as the module docstring
+    describes (fork where safe, else spawn). The kernel is loaded in this process first,
+    so forked workers inherit it and spawned ones only read numba's disk cache."""
+    from dampersim.simulation import ensure_compiled
+
+    ensure_compiled()
+    ctx = multiprocessing.get_context(_start_method())
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_initializer)
+
+
 # --------------------------------------------------------------------------- backends
 class _PoolBackend:
     name = "processes"
 
     def __init__(self, workers):
-        ctx = multiprocessing.get_context(_start_method())
-        self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_initializer)
+        self.pool = process_pool(workers)
         self.slots = workers
 
     def submit(self, *args):
@@ -540,8 +550,6 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                     break
         else:
             if executor == "processes":
-                from dampersim.simulation import ensure_compiled
-
                 if _cache._read_source_hash() != source:
                     raise InputError(
                         "dampersim's source files changed on disk after this process loaded them: "
@@ -549,7 +557,6 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                         "restart this process (or use executor='serial')"
                     )
 
-                ensure_compiled()  # compile once here so workers only load numba's disk cache
                 backend = _PoolBackend(min(workers or _cpu_count(), len(missing)))
             else:
                 backend = _DaskBackend(address, workers)
