@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 
 import numpy as np
@@ -39,6 +40,21 @@ def ensure_compiled(lay=None) -> float:
     return time.perf_counter() - t0
 
 
+@functools.lru_cache(maxsize=32)
+def _validated(system: DamperSystem) -> bool:
+    validate(system)
+    return True
+
+
+def _validate_once(system: DamperSystem) -> None:
+    """validate(), remembered per parameter set: a sweep simulates one frozen set many
+    times, and the check (with its eigenvalue stability bound) costs about 1.5 ms."""
+    try:
+        _validated(system)
+    except TypeError:  # an unhashable value inside: validate() names it, or it is fine
+        validate(system)
+
+
 def natural_duration(excitation, solver: Solver) -> float:
     """Duration [s]: the excitation's own length (ramps, measured records) or the solver's."""
     d = getattr(excitation, "duration", None)
@@ -60,7 +76,7 @@ def simulate(
     """
     if solver is not None:
         system = dataclasses.replace(system, solver=solver)
-    validate(system)
+    _validate_once(system)
     sol = system.solver
     if not hasattr(excitation, "torque") or not hasattr(excitation, "speed"):
         raise InputError("excitation: accepted is an OrderSum, TorqueRamp or MeasuredTorque")
@@ -70,7 +86,11 @@ def simulate(
     dt = sol.time_step
     nsteps = int(round(dur / dt))
     lay = build_layout(system, float(excitation.speed))
-    torque = np.ascontiguousarray(excitation.torque(np.arange(nsteps) * dt), dtype=np.float64)
+    grid = getattr(excitation, "torque_grid", None)  # fast path of excitations that have one
+    if grid is not None:
+        torque = grid(nsteps, dt)
+    else:
+        torque = np.ascontiguousarray(excitation.torque(np.arange(nsteps) * dt), dtype=np.float64)
     if not np.all(np.isfinite(torque)):
         raise InputError("excitation produced NaN/inf torque: accepted is finite torque")
     rec_every = max(1, int(round(1.0 / (sol.output_sample_rate * dt))))

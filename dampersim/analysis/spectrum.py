@@ -18,6 +18,8 @@ The thesis analyses every rig record the same way: a 1.25 s window of the torque
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from dampersim.errors import InputError
@@ -87,9 +89,13 @@ def _orders(orders):
     return arr
 
 
+@functools.lru_cache(maxsize=8)
 def _hann(n):
-    """Periodic (DFT-even) Hann window of ``n`` samples; its sum is exactly n/2."""
-    return 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
+    """Periodic (DFT-even) Hann window of ``n`` samples; its sum is exactly n/2. Read-only
+    and remembered: a sweep analyses every point over the same window length."""
+    w = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
+    w.flags.writeable = False
+    return w
 
 
 def _spectrum(x, fs):

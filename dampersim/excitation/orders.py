@@ -68,6 +68,20 @@ class OrderSum:
             fl += a * np.cos(k * self.speed * t + ph)
         return mean + env * fl
 
+    def torque_grid(self, n: int, dt: float) -> np.ndarray:
+        """:meth:`torque` at t = 0, dt, ..., (n-1) dt [s] (the integrator's grid), from one
+        compiled pass (:func:`dampersim.solver._kernels.order_sum`); equal to
+        ``torque(np.arange(n) * dt)`` to rounding, in a fraction of the time."""
+        from dampersim.solver import _kernels as kern
+
+        out = np.empty(int(n))
+        k = np.array([o[0] for o in self.orders], dtype=np.float64)
+        a = np.array([o[1] for o in self.orders], dtype=np.float64)
+        ph = np.array([o[2] for o in self.orders], dtype=np.float64)
+        kern.order_sum(out, float(dt), float(self.speed), float(self.mean_torque), float(self.mean_ramp),
+                       float(self.amplitude_ramp), k, a, ph)
+        return out
+
 
 def parse_orders(text: str) -> tuple:
     """Parse ``"2:300,4:100@90"`` -> ((2, 300, 0), (4, 100, pi/2)).

@@ -243,7 +243,10 @@ class _PoolBackend:
 
     def __init__(self, workers):
         self.pool = process_pool(workers)
-        self.slots = workers
+        # one task queued behind each running one: a worker that finishes starts its next
+        # point at once instead of waiting for this process to store the result and
+        # submit; a queued task is still cancellable (Future.cancel) when the sweep stops
+        self.slots = 2 * workers
 
     def submit(self, *args):
         return self.pool.submit(_compute_task, *args)
