@@ -2259,7 +2259,9 @@ def effect_parameter_text(name, values: dict) -> str:
 def ranking_rows(doc: dict) -> list:
     """Ranking of a diagnosis document as table rows: effect, fitted parameters (with
     units), held-out gap [N m], improvement over the calibrated model [%], complexity
-    penalty [N m] (score minus gap), score [N m], training fit and screen fit [N m]."""
+    penalty [N m] (score minus gap), score [N m], training fit and screen fit [N m], and
+    the starting point the effect was fitted from ("calibrated" or "estimated"
+    parameters; None in documents from before that choice existed)."""
     rows = []
     for i, r in enumerate(doc.get("ranking") or [], start=1):
         gap, score = r.get("gap_held_out_nm"), r.get("score")
@@ -2274,6 +2276,7 @@ def ranking_rows(doc: dict) -> list:
             "score_nm": score,
             "train_fit_nm": r.get("train_fit_nm"),
             "screen_fit_nm": r.get("screen_fit_nm"),
+            "start": r.get("screen_start"),
             "named": r.get("effect") == doc.get("effect"),
         })
     return rows

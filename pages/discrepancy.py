@@ -263,13 +263,16 @@ def ranking_table(doc: dict):
             "improvement": "—" if r["improvement_pct"] is None else f"{r['improvement_pct']:+.0f} %",
             "penalty": _nm(r["penalty_nm"]), "score": _nm(r["score_nm"]),
             "train": _nm(r["train_fit_nm"]), "screen": _nm(r["screen_fit_nm"]), "named": r["named"],
+            "start": r["start"] or "—",
         })
     cols = [("rank", "#"), ("effect", "Effect"), ("parameters", "Fitted parameters"), ("gap", "Held-out gap"),
             ("improvement", "Improvement on held-out points"), ("penalty", "Complexity penalty"), ("score", "Score"),
-            ("train", "Training fit"), ("screen", "Screen fit")]
+            ("train", "Training fit"), ("screen", "Screen fit"), ("start", "Fitted from")]
     note = html.P("Ranked by score = held-out gap plus a complexity penalty per fitted parameter. Improvement is relative "
                   "to the calibrated model without any effect; screened-out candidates were not fitted (their screen fit "
-                  "is the training residual of a linearised signature fit).", className="hint")
+                  "is the training residual of a linearised signature fit). Each candidate is fitted from the calibrated "
+                  "or the estimated parameters, whichever its screen fits better: from the estimated ones when the "
+                  "calibration had imitated the effect.", className="hint")
     return [C.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
 
 

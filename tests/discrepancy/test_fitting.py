@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dampersim.discrepancy.diagnose import PRIOR_LOG_SD, _effect_grid, _lstsq_bounded
+from dampersim.discrepancy.diagnose import PRIOR_LOG_SD, _cal_cost, _effect_grid, _joint_screen, _lstsq_bounded
 from dampersim.discrepancy.effects import NAMES, info, parameters_of
 from dampersim.discrepancy.synth import synthesize
 from dampersim.errors import InputError
@@ -34,6 +34,26 @@ def test_calibration_step_follows_strong_data():
     J = np.ones((100, 1))
     dx = _lstsq_bounded(J, 0.1 * np.ones(100), np.zeros(1))
     assert dx[0] == pytest.approx(0.1 / (1.0 + 1.0 / (100 * PRIOR_LOG_SD ** 2)), rel=1e-12)
+
+
+def test_joint_screen_lets_an_effect_take_back_imitating_calibration():
+    # linear model: the calibrated start x0 imitated part of an effect; the residual left
+    # from there is what undoing x0 plus the effect at scale 2 explains exactly. The
+    # joint fit finds both (the prior acts on x0 + dx, which it can bring to 0), and its
+    # cost is far below that of the calibration directions alone
+    rng = np.random.default_rng(7)
+    J = rng.normal(size=(40, 3))
+    d = rng.normal(size=40)
+    x0 = np.array([0.4, -0.1, 0.0])
+    r = -J @ x0 + 2.0 * d
+    cost, s, dx = _joint_screen(J, d, r, x0)
+    assert s == pytest.approx(2.0, abs=1e-9)
+    np.testing.assert_allclose(x0 + dx, 0.0, atol=1e-9)
+    assert cost == pytest.approx(0.0, abs=1e-12)
+    cost_alone, s_alone, dx_alone = _joint_screen(J, None, r, x0)
+    assert s_alone == 0.0 and cost_alone > 10.0
+    # the returned cost is the calibration's objective at the fitted point
+    assert cost_alone == pytest.approx(_cal_cost(r - J @ dx_alone, x0 + dx_alone), rel=1e-12)
 
 
 def test_synth_refuses_unknown_point_ids(tmp_path):
