@@ -2276,7 +2276,7 @@ def ranking_rows(doc: dict) -> list:
             "score_nm": score,
             "train_fit_nm": r.get("train_fit_nm"),
             "screen_fit_nm": r.get("screen_fit_nm"),
-            "start": r.get("screen_start"),
+            "start": r.get("fitted_from"),
             "named": r.get("effect") == doc.get("effect"),
         })
     return rows

@@ -379,7 +379,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 "train_fit_nm": fit,
                 "screen_fit_nm": screen[name]["fit_rms"],
                 "screen_cost": screen[name]["cost"],
-                "screen_start": start,
+                "fitted_from": start,
                 "_x": np.asarray(x_eff).tolist(),
                 "_yh": yh,
             })
@@ -387,7 +387,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             if name not in shortlisted:
                 ranking.append({"effect": name, "parameters": {}, "gap_held_out_nm": None, "score": None,
                                 "improvement": None, "train_fit_nm": None, "screen_fit_nm": screen[name]["fit_rms"],
-                                "screen_cost": screen[name]["cost"], "screen_start": screen[name]["start"]})
+                                "screen_cost": screen[name]["cost"], "fitted_from": screen[name]["start"]})
         ranking.sort(key=lambda r: (r["score"] is None, r["score"] if r["score"] is not None else r["screen_cost"]))
         # verdict
         top = ranking[0]

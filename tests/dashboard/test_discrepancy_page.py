@@ -254,6 +254,8 @@ def test_document_helpers_round_trip(tiny):
     assert d.gap_before_nm == doc["gap_before_nm"] and set(d.residuals) == {"before", "calibrated", "after"}
     rows = views.ranking_rows(doc)
     assert [r["effect"] for r in rows] == [r["effect"] for r in doc["ranking"]]
+    # every candidate says which parameters it was fitted (or screened) from
+    assert {r["start"] for r in rows} <= {"calibrated", "estimated"}
     fitted = [r for r in rows if r["score_nm"] is not None]
     # the penalty is the score minus the held-out gap (3 % of the gap per fitted parameter in diagnose.py);
     # 1e-12 N m: the helper does the same subtraction, so only rounding may differ
