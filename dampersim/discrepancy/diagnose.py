@@ -330,8 +330,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 if m not in tried:
                     ym = _orders_of(runner, with_effect(s0, name, {e.magnitude: float(m)}), ptr)
                     r = (meas[train] - ym).ravel()
-                    dxc = _lstsq_bounded(jac, r * wtr, x0) if jac is not None else np.zeros_like(x0)
-                    rr = r - (jac_u @ dxc if jac is not None else 0)
+                    dxc = _lstsq_bounded(jac_s, r * wtr, x0)  # zero Jacobian, x0 = 0: dxc = 0
+                    rr = r - jac_su @ dxc
                     tried[m] = (_cal_cost(rr * wtr, x0 + dxc), _rms(rr), float(m), x0 + dxc)
                 return tried[m]
 
