@@ -18,7 +18,7 @@ def _transducer(tout, system, rec_dt):
     tb = getattr(getattr(system, "effects", None), "transducer_bandwidth", None)
     if tb is None or not tb.enabled or len(tout) < 2:
         return tout
-    from dampersim.analysis.hysteresis import lowpass_first_order
+    from dampersim.signal import lowpass_first_order
 
     return lowpass_first_order(tout, 1.0 / rec_dt, tb.cutoff)
 
@@ -114,7 +114,7 @@ class SimulationResult:
 
     def order_amplitudes(self, orders=tuple(range(1, 9)), seconds: float = ANALYSIS_WINDOW):
         """(input, output) order amplitudes [N m] over the analysis window ([thesis] §3.4)."""
-        from dampersim.analysis.spectrum import order_amplitudes
+        from dampersim.signal import order_amplitudes
 
         w = self.window(seconds)
         a_in = order_amplitudes(self.input_torque[w], self.sample_rate, self.speed, orders)

@@ -869,7 +869,7 @@ def order_table(result, excited_orders, seconds: float) -> list:
     """Rows {order, frequency_hz, input_nm, output_nm, mr, excited} for orders 1-8 and every
     excited order (input and output amplitudes over the analysis window, [thesis] §3.4)."""
     from dampersim.analysis.metrics import magnification_ratio
-    from dampersim.analysis.spectrum import order_amplitudes
+    from dampersim.signal import order_amplitudes
 
     w = result.window(seconds)
     fs = result.sample_rate
@@ -1000,7 +1000,7 @@ def _spectrum(res, seconds):
     """Input and output amplitude spectra over the analysis window on a log axis, engine
     orders marked (as :func:`dampersim.plotting.result_spectrum_figure`, with the order
     markers set in one layout update: adding them one by one costs ~30 ms each)."""
-    from dampersim.analysis.spectrum import DEFAULT_ORDERS, amplitude_spectrum
+    from dampersim.signal import DEFAULT_ORDERS, amplitude_spectrum
     from dampersim.plotting import spectrum_figure
 
     w = res.window(seconds)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from dampersim.analysis.spectrum import DEFAULT_ORDERS, amplitude_spectrum
+from dampersim.signal import DEFAULT_ORDERS, amplitude_spectrum
 from dampersim.errors import InputError
 from dampersim.units import rad_s_to_rpm
 

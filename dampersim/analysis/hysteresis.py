@@ -24,10 +24,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from dampersim.errors import InputError
+from dampersim.signal import LOWPASS_CUTOFF_HZ, lowpass_first_order
 from dampersim.units import rad_s_to_rpm, rad_to_deg
 
-#: Break frequency of the thesis's smoothing filter [Hz] ([thesis] §3.4).
-LOWPASS_CUTOFF_HZ = 10.0
 #: Sample rate [Hz] used by run_loops unless the parameter set asks for another one:
 #: a 50 N m/s ramp has no content near 500 Hz, and 1 kHz keeps 30 s loops small.
 LOOP_SAMPLE_RATE_HZ = 1000.0
@@ -42,56 +41,6 @@ DEFAULT_KNEE_RATIO = 1.5
 STOP_RATIO = 1e-6
 #: The knee fit ignores the first 2 % of a branch's windup travel (the stuck start).
 START_TRIM = 0.02
-
-
-# --- filtering ---------------------------------------------------------------------------
-def lowpass_coefficients(sample_rate_hz: float, cutoff_hz: float = LOWPASS_CUTOFF_HZ):
-    """(b, a) of the discrete first-order low pass with its -3 dB point at ``cutoff_hz``.
-
-    The analogue filter 1 / (1 + s / (2 pi fc)) is mapped with the bilinear transform,
-    pre-warped so that the -3 dB point lands exactly at ``cutoff_hz`` [Hz]; DC gain is 1.
-    ``sample_rate_hz`` [Hz] must exceed 2 x ``cutoff_hz``.
-    """
-    fs, fc = float(sample_rate_hz), float(cutoff_hz)
-    if not (math.isfinite(fs) and fs > 0):
-        raise InputError(f"sample rate {sample_rate_hz!r} Hz: accepted is a positive rate")
-    if not (math.isfinite(fc) and 0 < fc < fs / 2):
-        raise InputError(f"cutoff {cutoff_hz!r} Hz: accepted is 0 < cutoff < sample rate / 2 = {fs / 2:g} Hz")
-    k = math.tan(math.pi * fc / fs)
-    b = np.array([k, k]) / (1.0 + k)
-    a = np.array([1.0, (k - 1.0) / (k + 1.0)])
-    return b, a
-
-
-def lowpass_first_order(x, sample_rate_hz: float, cutoff_hz: float = LOWPASS_CUTOFF_HZ, zero_phase: bool = False) -> np.ndarray:
-    """First-order low pass of a sampled signal ([thesis] §3.4: 1st order, 10 Hz break).
-
-    Args:
-        x: samples (any unit; output in the same unit), 1-D.
-        sample_rate_hz: sample rate [Hz].
-        cutoff_hz: -3 dB break frequency [Hz] (default 10 Hz, as the thesis).
-        zero_phase: run the filter forwards and backwards (``scipy.signal.filtfilt``): no
-            lag between channels, but the magnitude is squared (-6 dB at the break). The
-            default is the causal filter the thesis describes; it lags by about
-            1 / (2 pi fc) = 16 ms at 10 Hz, which for torque and windup filtered alike is
-            harmless.
-
-    The filter starts in steady state at ``x[0]`` (no start-up transient).
-    """
-    from scipy.signal import filtfilt, lfilter, lfilter_zi
-
-    x = np.asarray(x, dtype=float)
-    if x.ndim != 1 or x.size < 2:
-        raise InputError(f"signal to filter: accepted is a 1-D array of >= 2 samples, got shape {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise InputError("signal to filter contains NaN/inf samples: clean them first")
-    b, a = lowpass_coefficients(sample_rate_hz, cutoff_hz)
-    if zero_phase:
-        if x.size <= 6:
-            raise InputError("zero-phase filtering needs more than 6 samples")
-        return filtfilt(b, a, x)
-    y, _ = lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0])
-    return y
 
 
 # --- loops -------------------------------------------------------------------------------

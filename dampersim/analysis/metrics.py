@@ -1,7 +1,7 @@
 """Per-order metrics comparing damper input, output and simulation ([thesis] §3.4, §6.3.1).
 
 All functions work on per-order amplitude arrays [N m] as returned by
-:func:`dampersim.analysis.spectrum.order_amplitudes`, element by element; any array shape is
+:func:`dampersim.signal.order_amplitudes`, element by element; any array shape is
 accepted as long as the arguments match.
 """
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dampersim.analysis.spectrum import order_amplitudes
+from dampersim.signal import order_amplitudes
 
 ORDERS = tuple(float(k) for k in range(1, 9))
 RAMP_FILTER_HZ = 10.0  # [thesis] §3.4: loops low-passed at 10 Hz
@@ -141,7 +141,7 @@ class Runner:
 
 def windup_error_deg(sim_windup, point) -> float:
     """RMS difference [deg] of the 10 Hz low-passed simulated and measured windup."""
-    from dampersim.analysis.hysteresis import lowpass_first_order
+    from dampersim.signal import lowpass_first_order
 
     fs = point.sample_rate_hz
     a = lowpass_first_order(sim_windup, fs, min(RAMP_FILTER_HZ, 0.45 * fs))

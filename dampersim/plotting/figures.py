@@ -30,7 +30,7 @@ import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from dampersim.analysis.spectrum import DEFAULT_ORDERS, amplitude_spectrum
+from dampersim.signal import DEFAULT_ORDERS, amplitude_spectrum
 from dampersim.errors import InputError
 from dampersim.plotting import theme
 from dampersim.plotting.theme import COLOURWAY, DASHES, axis_title

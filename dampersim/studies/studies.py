@@ -375,7 +375,7 @@ def poor_performance(system=None, quick=False, executor="processes", progress=No
 def _stiffness_run(system, excitation, duration):
     """Outer-set dynamic stiffness, vibration angle and per-segment compression range of
     one slow-sine run (the approach of tests/physics/test_speed_stiffening.py)."""
-    from dampersim.analysis.spectrum import order_amplitudes
+    from dampersim.signal import order_amplitudes
     from dampersim.simulation import simulate
 
     res = simulate(system, excitation, duration=duration)

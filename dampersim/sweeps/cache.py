@@ -58,7 +58,7 @@ SOURCE_FILES = (
     "solver/layout.py",
     "simulation.py",
     "results.py",
-    "analysis/spectrum.py",
+    "signal.py",
     "excitation/orders.py",
     "sweeps/cache.py",
 )
@@ -339,7 +339,7 @@ def _order_index(stored, k) -> int:
 
 def _amplitudes_below_nyquist(x, fs, speed, orders):
     """Order amplitudes [N m]; NaN for orders at or above the Nyquist frequency."""
-    from dampersim.analysis.spectrum import order_amplitudes
+    from dampersim.signal import order_amplitudes
 
     orders = np.asarray(orders, dtype=float)
     out = np.full(orders.size, np.nan)
@@ -358,7 +358,7 @@ def compute_record(system, point, duration=None, window=None, key="") -> PointRe
     :func:`order_amplitudes` (exactly as ``SimulationResult.order_amplitudes``) and the
     half orders 0.5-7.5 in a second call.
     """
-    from dampersim.analysis.spectrum import amplitude_spectrum
+    from dampersim.signal import amplitude_spectrum
     from dampersim.results import ANALYSIS_WINDOW
     from dampersim.simulation import simulate
 

@@ -356,7 +356,7 @@ def order_amplitudes_of_file(path, rpm, column=None, fs=None, orders=None, windo
             message lists the available ones), NaN/inf samples, non-uniform time, record
             too short, orders at or above the Nyquist frequency.
     """
-    from dampersim.analysis.spectrum import (
+    from dampersim.signal import (
         DEFAULT_ORDERS,
         MIN_SAMPLES,
         order_amplitudes,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dampersim import OrderSum, default_parameters, simulate
-from dampersim.analysis.spectrum import order_amplitudes
+from dampersim.signal import order_amplitudes
 from dampersim.units import rpm_to_rad_s
 
 P = default_parameters()

@@ -135,7 +135,7 @@ def test_key_changes_with_kernel_source_and_version(system, point, monkeypatch):
 
 
 def test_source_hash_covers_kernel_and_analysis_files():
-    for rel in ("solver/_kernels.py", "solver/layout.py", "simulation.py", "results.py", "analysis/spectrum.py"):
+    for rel in ("solver/_kernels.py", "solver/layout.py", "simulation.py", "results.py", "signal.py"):
         assert rel in sc.SOURCE_FILES
     assert sc._read_source_hash() == sc.kernel_source_hash()
 

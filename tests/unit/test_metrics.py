@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from dampersim.analysis.metrics import error_table, magnification_ratio, simulation_error
-from dampersim.analysis.spectrum import order_amplitudes
+from dampersim.signal import order_amplitudes
 
 FS = 10_000.0  # [Hz]
 DURATION = 1.25  # [s], [thesis] §3.4

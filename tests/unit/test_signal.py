@@ -1,9 +1,9 @@
-"""Tests of dampersim.analysis.spectrum on synthetic engine-order torque signals."""
+"""Tests of dampersim.signal on synthetic engine-order torque signals."""
 
 import numpy as np
 import pytest
 
-from dampersim.analysis.spectrum import (
+from dampersim.signal import (
     DEFAULT_ORDERS,
     amplitude_spectrum,
     order_amplitudes,

@@ -1,8 +1,12 @@
-"""Amplitude spectrum and engine-order amplitudes of torque signals ([thesis] §3.4).
+"""Signal primitives: amplitude spectrum, engine-order amplitudes and the first-order low pass.
 
-The thesis analyses every rig record the same way: a 1.25 s window of the torque signal
-[N m] is Hann-windowed, transformed to a single-sided amplitude spectrum and a peak finder
-("Peakfinder") reads the amplitudes of the first eight engine orders from it.
+Everything here works on plain sampled arrays, whatever produced them (a simulation, a rig
+record): the layers above (results, analysis, discrepancy) all read signals through it.
+
+Spectrum and orders ([thesis] §3.4): the thesis analyses every rig record the same way: a
+1.25 s window of the torque signal [N m] is Hann-windowed, transformed to a single-sided
+amplitude spectrum and a peak finder ("Peakfinder") reads the amplitudes of the first eight
+engine orders from it.
 
 :func:`order_amplitudes` keeps that structure but makes the read-out robust:
 
@@ -19,6 +23,7 @@ The thesis analyses every rig record the same way: a 1.25 s window of the torque
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -293,3 +298,57 @@ def resample_uniform(t, x):
     if x.size != t.size:
         raise InputError(f"x has {x.size} samples but t has {t.size} time stamps; they must match")
     return np.interp(t[0] + np.arange(t.size) / fs, t, x), fs
+
+
+#: Break frequency of the thesis's smoothing filter [Hz] ([thesis] §3.4).
+LOWPASS_CUTOFF_HZ = 10.0
+
+
+# --- filtering ---------------------------------------------------------------------------
+def lowpass_coefficients(sample_rate_hz: float, cutoff_hz: float = LOWPASS_CUTOFF_HZ):
+    """(b, a) of the discrete first-order low pass with its -3 dB point at ``cutoff_hz``.
+
+    The analogue filter 1 / (1 + s / (2 pi fc)) is mapped with the bilinear transform,
+    pre-warped so that the -3 dB point lands exactly at ``cutoff_hz`` [Hz]; DC gain is 1.
+    ``sample_rate_hz`` [Hz] must exceed 2 x ``cutoff_hz``.
+    """
+    fs, fc = float(sample_rate_hz), float(cutoff_hz)
+    if not (math.isfinite(fs) and fs > 0):
+        raise InputError(f"sample rate {sample_rate_hz!r} Hz: accepted is a positive rate")
+    if not (math.isfinite(fc) and 0 < fc < fs / 2):
+        raise InputError(f"cutoff {cutoff_hz!r} Hz: accepted is 0 < cutoff < sample rate / 2 = {fs / 2:g} Hz")
+    k = math.tan(math.pi * fc / fs)
+    b = np.array([k, k]) / (1.0 + k)
+    a = np.array([1.0, (k - 1.0) / (k + 1.0)])
+    return b, a
+
+
+def lowpass_first_order(x, sample_rate_hz: float, cutoff_hz: float = LOWPASS_CUTOFF_HZ, zero_phase: bool = False) -> np.ndarray:
+    """First-order low pass of a sampled signal ([thesis] §3.4: 1st order, 10 Hz break).
+
+    Args:
+        x: samples (any unit; output in the same unit), 1-D.
+        sample_rate_hz: sample rate [Hz].
+        cutoff_hz: -3 dB break frequency [Hz] (default 10 Hz, as the thesis).
+        zero_phase: run the filter forwards and backwards (``scipy.signal.filtfilt``): no
+            lag between channels, but the magnitude is squared (-6 dB at the break). The
+            default is the causal filter the thesis describes; it lags by about
+            1 / (2 pi fc) = 16 ms at 10 Hz, which for torque and windup filtered alike is
+            harmless.
+
+    The filter starts in steady state at ``x[0]`` (no start-up transient).
+    """
+    from scipy.signal import filtfilt, lfilter, lfilter_zi
+
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 1 or x.size < 2:
+        raise InputError(f"signal to filter: accepted is a 1-D array of >= 2 samples, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise InputError("signal to filter contains NaN/inf samples: clean them first")
+    b, a = lowpass_coefficients(sample_rate_hz, cutoff_hz)
+    if zero_phase:
+        if x.size <= 6:
+            raise InputError("zero-phase filtering needs more than 6 samples")
+        return filtfilt(b, a, x)
+    y, _ = lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0])
+    return y
