@@ -9,7 +9,7 @@ the Torque Converter Damper System" (University of Bath, 2017), cited in the cod
 and the public entry points are re-exported here.
 """
 
-__version__ = "0.1.0"
+from dampersim.version import __version__  # noqa: E402,F401
 
 from dampersim.errors import DampersimError, ParameterError, SimulationDiverged  # noqa: E402
 from dampersim.parameters import DamperSystem, default_parameters, load_parameters  # noqa: E402

@@ -3,14 +3,13 @@
 Location: ``$DAMPERSIM_CACHE_DIR/results`` when that environment variable is set (read on
 every call, made absolute), else ``cache/results`` at the repository root.
 
-Key: SHA-256 of a canonical JSON document holding the complete parameter set
+Key: :func:`dampersim.keys.make_key` of the complete parameter set
 (:func:`dampersim.parameters.to_dict`, solver settings included; only the set's ``name``
-and ``source`` labels are left out), the excitation (its type
-and every field), the simulated duration [s], the analysis settings, the package version
-and a hash of the source of every module whose code shapes a stored value (kernel, layout,
-simulation, results, spectrum, excitation and this module). Floats enter the key as
-``float.hex`` strings, so two values that differ in the last bit get different keys; a
-physics or analysis change gives new keys and can never return a stale result.
+and ``source`` labels are left out), the excitation (its type and every field), the
+simulated duration [s] and the analysis settings, with the package version, the platform
+(numpy/numba/llvmlite versions, CPU target) and the hash of every module that
+:func:`compute_record` reaches through imports. A physics, analysis or platform change
+gives new keys and can never return a stale result.
 
 Value: a :class:`PointRecord` -- order amplitudes of input and output torque for orders
 0.5, 1, ..., 8 [N m] ([thesis] §3.4), the amplitude spectra of both over the analysis
@@ -23,11 +22,8 @@ never leaves a partial entry.
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 import hashlib
 import io
-import json
 import math
 import os
 import time
@@ -36,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-import dampersim
-from dampersim.errors import DampersimError, InputError
+from dampersim import keys
+from dampersim.errors import InputError
 
 #: Environment variable naming the cache directory (read at call time).
 CACHE_DIR_ENV = "DAMPERSIM_CACHE_DIR"
@@ -49,25 +45,18 @@ STORED_ORDERS = tuple(0.5 * k for k in range(1, 17))
 SPECTRUM_MAX_HZ = 1000.0
 #: Bumped when the stored layout changes (the source hash covers this file anyway).
 RECORD_FORMAT = 1
+#: Schema name of a sweep-point key.
+KEY_SCHEMA = "dampersim.sweep-point"
 
 _MAGIC = b"DSPR1\n"
 _DIGEST = 32
-# Files (relative to the dampersim package) whose code determines a cached value.
-SOURCE_FILES = (
-    "solver/_kernels.py",
-    "solver/layout.py",
-    "simulation.py",
-    "results.py",
-    "signal.py",
-    "excitation/orders.py",
-    "sweeps/cache.py",
-)
+
 
 
 # --------------------------------------------------------------------------- location
 def repo_root() -> Path:
     """Directory that contains the ``dampersim`` package (the repository in a checkout)."""
-    return Path(dampersim.__file__).resolve().parent.parent
+    return keys.PACKAGE_DIR.parent
 
 
 def cache_dir() -> Path:
@@ -84,74 +73,30 @@ def results_dir() -> Path:
 
 
 # --------------------------------------------------------------------------- key
-def _read_source_hash(files=SOURCE_FILES) -> str:
-    pkg = Path(dampersim.__file__).resolve().parent
-    h = hashlib.sha256()
-    for rel in files:
-        try:
-            text = (pkg / rel).read_bytes()
-        except OSError as exc:
-            raise DampersimError(
-                f"cannot read dampersim/{rel} ({exc.strerror or exc}); sweeps key their results "
-                "by the package's source files, so install dampersim with its .py files"
-            ) from None
-        h.update(rel.encode())
-        h.update(b"\0")
-        h.update(text)
-        h.update(b"\0")
-    return h.hexdigest()
-
-
-@functools.lru_cache(maxsize=None)  # a handful of file sets per process; never evicted, so each stays pinned
-def source_hash(files: tuple) -> str:
-    """SHA-256 of the given package files (paths relative to ``dampersim/``), read once
-    per process: the one memo behind every source hash (sweep points, views, diagnoses)."""
-    return _read_source_hash(tuple(files))
+#: The module whose code computes a stored value: its import closure is hashed into the key.
+RECORD_MODULE = __name__
 
 
 def kernel_source_hash() -> str:
-    """SHA-256 of the source of the modules that shape a cached value (see SOURCE_FILES).
+    """SHA-256 of the source of every module that shapes a cached point
+    (:func:`dampersim.keys.source_hash` of this module's import closure).
 
-    Read once per process, when this module is imported (just after ``dampersim`` itself),
-    so that it describes the code this process runs even if the files are edited later;
-    sweep workers compare their own value with the one the key was built with and refuse
-    to deliver a mismatch.
+    Read once per process, when this module is imported, so that it describes the code
+    this process runs even if the files are edited later; sweep workers compare their own
+    value with the one the key was built with and refuse to deliver a mismatch.
     """
-    return source_hash(SOURCE_FILES)
+    return keys.source_hash(RECORD_MODULE)
+
+
+def current_source_hash() -> str:
+    """The same hash read from the files as they are now (not the memo of this process)."""
+    return keys.source_hash_at(RECORD_MODULE, keys.PACKAGE_DIR)
 
 
 try:  # pin the hash to the code loaded now; a failure is reported when a key is needed
-    source_hash(SOURCE_FILES)
-except DampersimError:
+    kernel_source_hash()
+except Exception:
     pass
-
-
-def _canonical(obj):
-    """JSON-ready structure in which every float is exact (``float.hex``)."""
-    if obj is None or isinstance(obj, (bool, str)):
-        return obj
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        x = float(obj)
-        return {"f": x.hex()}
-    if isinstance(obj, np.ndarray):
-        arr = np.ascontiguousarray(obj)
-        return {
-            "array": str(arr.dtype),
-            "shape": list(arr.shape),
-            "sha256": hashlib.sha256(arr.tobytes()).hexdigest(),
-        }
-    if isinstance(obj, dict):
-        return {str(k): _canonical(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_canonical(v) for v in obj]
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {
-            "type": f"{type(obj).__module__}.{type(obj).__qualname__}",
-            "fields": {f.name: _canonical(getattr(obj, f.name)) for f in dataclasses.fields(obj)},
-        }
-    raise InputError(f"cannot build a cache key from a {type(obj).__name__} value ({obj!r:.60})")
 
 
 def _excitation_of(point_or_excitation):
@@ -173,8 +118,8 @@ def resolved_duration(system, excitation, duration=None) -> float:
     return dur
 
 
-def key_document(system, point_or_excitation, duration=None, window=None, source_hash=None) -> dict:
-    """The document whose canonical JSON is hashed into the key (for inspection/tests).
+def key_parts(system, point_or_excitation, duration=None, window=None) -> dict:
+    """What one test point's key is made of, besides version, platform and source.
 
     system: :class:`DamperSystem`; point_or_excitation: a TestPoint or an excitation
     object; duration [s] (None: natural duration); window: analysis window [s] (None:
@@ -186,10 +131,7 @@ def key_document(system, point_or_excitation, duration=None, window=None, source
     excitation = _excitation_of(point_or_excitation)
     window = ANALYSIS_WINDOW if window is None else float(window)
     return {
-        "schema": "dampersim.sweep-point",
         "record_format": RECORD_FORMAT,
-        "version": dampersim.__version__,
-        "source": kernel_source_hash() if source_hash is None else source_hash,
         # the set's name and source text are labels, not physics: renaming keeps the hits
         "parameters": {k: v for k, v in to_dict(system).items() if k not in ("name", "source")},
         "solver": to_dict(system.solver),
@@ -203,16 +145,22 @@ def key_document(system, point_or_excitation, duration=None, window=None, source
     }
 
 
+def key_document(system, point_or_excitation, duration=None, window=None, source_hash=None) -> dict:
+    """The document hashed into the key (for inspection and tests)."""
+    parts = key_parts(system, point_or_excitation, duration, window)
+    source = kernel_source_hash() if source_hash is None else source_hash
+    return keys.key_document(KEY_SCHEMA, RECORD_MODULE, parts, source)
+
+
 def cache_key(system, point_or_excitation, duration=None, window=None, source_hash=None) -> str:
     """Stable SHA-256 hex key of one test point's result (see the module docstring).
 
     Equal inputs built separately give the same key; any change of a parameter, the
     solver settings, the excitation, the duration [s], the analysis window [s], the
-    package version or the kernel/analysis source gives a different key.
+    package version, the platform or the source of the code behind a point gives a
+    different key. source_hash: pin the source hash (workers use the parent's).
     """
-    doc = _canonical(key_document(system, point_or_excitation, duration, window, source_hash))
-    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
-    return hashlib.sha256(text.encode("ascii")).hexdigest()
+    return keys.digest(key_document(system, point_or_excitation, duration, window, source_hash))
 
 
 # --------------------------------------------------------------------------- record
@@ -494,7 +442,9 @@ __all__ = [
     "results_dir",
     "cache_key",
     "key_document",
+    "key_parts",
     "kernel_source_hash",
+    "current_source_hash",
     "compute_record",
     "resolved_duration",
 ]

@@ -39,7 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-import dampersim
+from dampersim import keys as _keys
+from dampersim.version import __version__
 from dampersim.fileio import write_parquet_atomic
 from dampersim.analysis.colourmap import SWEEP_COLUMNS
 from dampersim.errors import DampersimError, InputError
@@ -188,8 +189,9 @@ class SweepResult:
 
 # --------------------------------------------------------------------------- worker side
 def _environment() -> tuple:
-    """What a worker must share with the parent for its result to match the key."""
-    return (dampersim.__version__, _cache.kernel_source_hash())
+    """What a worker must share with the parent for its result to match the key: the
+    package version, the source hash and the platform (library versions, CPU target)."""
+    return (__version__, _cache.kernel_source_hash(), _keys.digest(_keys.platform()))
 
 
 def _compute_task(system, point, duration, window, key, expected_env):
@@ -492,7 +494,7 @@ def run_sweep(
 def _run(system, points, executor, address, workers, progress, is_cancelled,
          duration, window, orders, store, t_start):
     source = _cache.kernel_source_hash()
-    env = (dampersim.__version__, source)
+    env = (__version__, source, _keys.digest(_keys.platform()))
     keys = tuple(_cache.cache_key(system, p, duration, window, source_hash=source) for p in points)
     slots_of: dict[str, list[int]] = {}
     for i, k in enumerate(keys):
@@ -553,7 +555,7 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                     break
         else:
             if executor == "processes":
-                if _cache._read_source_hash() != source:
+                if _cache.current_source_hash() != source:
                     raise InputError(
                         "dampersim's source files changed on disk after this process loaded them: "
                         "new worker processes would run other code than the cache keys describe; "

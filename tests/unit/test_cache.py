@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import dampersim
-from dampersim import default_parameters
+from dampersim import default_parameters, keys
 from dampersim.errors import InputError
 from dampersim.parameters import with_updates
 from dampersim.sweeps import cache as sc
@@ -87,8 +87,8 @@ def test_key_floats_are_exact(system, point):
     stiffness = system.outer.spring.stiffness
     nudged = with_updates(system, {"outer.spring.stiffness": math.nextafter(stiffness, math.inf)})
     assert key(nudged, point) != key(system, point)
-    doc = sc._canonical(sc.key_document(system, point, 1.0, 0.4))
-    assert doc["duration_s"] == {"f": (1.0).hex()}
+    doc = keys.canonical(sc.key_document(system, point, 1.0, 0.4))
+    assert doc["parts"]["duration_s"] == {"f": (1.0).hex()}
 
 
 def test_key_ignores_only_the_name_and_source_labels(system, point):
@@ -130,14 +130,25 @@ def test_key_changes_with_kernel_source_and_version(system, point, monkeypatch):
     assert key(system, point) != base
     monkeypatch.undo()
     assert key(system, point) == base
-    monkeypatch.setattr(dampersim, "__version__", "9.9.9")
+    monkeypatch.setattr(keys, "__version__", "9.9.9")
     assert key(system, point) != base
 
 
-def test_source_hash_covers_kernel_and_analysis_files():
-    for rel in ("solver/_kernels.py", "solver/layout.py", "simulation.py", "results.py", "signal.py"):
-        assert rel in sc.SOURCE_FILES
-    assert sc._read_source_hash() == sc.kernel_source_hash()
+def test_source_hash_covers_every_module_that_shapes_a_point():
+    covered = keys.module_closure(sc.RECORD_MODULE)
+    # the kernel, its layout, the simulation, the result, the signal analysis and the
+    # transducer low pass behind effect transducer_bandwidth (once missed by a file list)
+    for name in ("dampersim.solver", "dampersim.simulation", "dampersim.results", "dampersim.signal",
+                 "dampersim.excitation.orders", "dampersim.parameters.model"):
+        assert any(c == name or c.startswith(name + ".") for c in covered), name
+    assert sc.current_source_hash() == sc.kernel_source_hash()
+
+
+def test_key_changes_with_the_platform(system, point, monkeypatch):
+    base = key(system, point)
+    other = {**keys.platform(), "cpu": {"name": "another-cpu", "features": ""}}
+    monkeypatch.setattr(keys, "platform", lambda: other)
+    assert key(system, point) != base
 
 
 def test_key_rejects_unhashable_values(system):

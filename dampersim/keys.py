@@ -1,0 +1,221 @@
+"""Cache keys: one canonical, content-addressed key for every cached result in dampersim.
+
+A key is the SHA-256 of a canonical JSON document (:func:`canonical`) that holds
+
+* what was asked for (parameter set, excitation, page state, options: the caller's parts);
+* the package version;
+* the platform: Python, numpy, numba and llvmlite versions and the CPU that numba compiles
+  for. Fast-math rounding differs between CPU targets and compiler versions, and in a
+  chaotic regime a last-bit difference moves an order amplitude by several per cent, so a
+  result computed elsewhere is not served as if it were this machine's;
+* a hash of the source of every dampersim module the result's code can reach
+  (:func:`source_hash`). The set of modules is found by reading the import statements of
+  the package's own files (imports inside functions included), starting from the module
+  that computes the result, so no file list is kept by hand: a new module that shapes a
+  result is covered the moment something imports it.
+
+Floats enter the document as ``float.hex`` strings: two values that differ in the last
+bit give different keys. Arrays enter as dtype, shape and the SHA-256 of their bytes.
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import functools
+import hashlib
+import importlib.metadata
+import json
+import platform as _platform
+from pathlib import Path
+
+import numpy as np
+
+from dampersim.errors import DampersimError, InputError
+from dampersim.version import __version__
+
+#: The package folder (``dampersim/``) whose sources are hashed.
+PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE = "dampersim"
+
+
+# --------------------------------------------------------------------------- canonical form
+def canonical(obj):
+    """A JSON-ready structure of ``obj`` in which every float is exact (``float.hex``).
+
+    Accepts None, bool, str, int, float (and numpy scalars), numpy arrays, dicts, lists,
+    tuples and dataclass instances (as their type name and fields). Anything else raises
+    InputError naming the type: a key must never depend on ``repr`` or object identity.
+    """
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return {"f": float(obj).hex()}
+    if isinstance(obj, np.ndarray):
+        arr = np.ascontiguousarray(obj)
+        return {"array": str(arr.dtype), "shape": list(arr.shape), "sha256": hashlib.sha256(arr.tobytes()).hexdigest()}
+    if isinstance(obj, dict):
+        return {str(k): canonical(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [canonical(v) for v in obj]
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {
+            "type": f"{type(obj).__module__}.{type(obj).__qualname__}",
+            "fields": {f.name: canonical(getattr(obj, f.name)) for f in dataclasses.fields(obj)},
+        }
+    raise InputError(f"cannot build a cache key from a {type(obj).__name__} value ({obj!r:.60})")
+
+
+def digest(document) -> str:
+    """SHA-256 hex digest of the canonical JSON of ``document``."""
+    text = json.dumps(canonical(document), sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+# --------------------------------------------------------------------------- sources
+def _module_file(name: str, root: Path) -> Path | None:
+    """File of dotted module ``name`` (``dampersim.x.y``) under ``root``, or None."""
+    rel = name.split(".")[1:]
+    base = root.joinpath(*rel) if rel else root
+    if (base / "__init__.py").is_file():
+        return base / "__init__.py"
+    py = base.with_suffix(".py") if rel else None
+    return py if py is not None and py.is_file() else None
+
+
+def _imports(name: str, path: Path) -> set:
+    """Dotted dampersim module names imported anywhere in the file of module ``name``."""
+    try:
+        tree = ast.parse(path.read_bytes(), filename=str(path))
+    except (OSError, SyntaxError) as exc:
+        raise DampersimError(
+            f"cannot read {PACKAGE}/{path.name} ({exc}); results are keyed by the package's source, "
+            "so install dampersim with its .py files"
+        ) from None
+    is_pkg = path.name == "__init__.py"
+    here = name.split(".") if is_pkg else name.split(".")[:-1]
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.split(".")[0] == PACKAGE)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = here[: len(here) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            if mod.split(".")[0] != PACKAGE:
+                continue
+            found.add(mod)
+            found.update(f"{mod}.{a.name}" for a in node.names)  # `from pkg import module`
+    return found
+
+
+def module_closure(module: str, root: Path = PACKAGE_DIR) -> tuple:
+    """Sorted names of the dampersim modules reachable from ``module`` through imports
+    (``module`` included; parent packages of every reached module included, since Python
+    runs them on import). ``root`` is the package folder to read (tests point it at a copy)."""
+    seen: set = set()
+    todo = [module]
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        path = _module_file(name, root)
+        if path is None:  # a name imported from a module, not a module: nothing to read
+            continue
+        seen.add(name)
+        parts = name.split(".")
+        todo.extend(".".join(parts[:i]) for i in range(1, len(parts)))
+        todo.extend(_imports(name, path) - seen)
+    return tuple(sorted(seen))
+
+
+def _hash_sources(module: str, root: Path) -> str:
+    h = hashlib.sha256()
+    for name in module_closure(module, root):
+        path = _module_file(name, root)
+        h.update(name.encode())
+        h.update(b"\0")
+        h.update(path.read_bytes())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=None)
+def source_hash(module: str) -> str:
+    """SHA-256 of the source of ``module`` and of every dampersim module it reaches through
+    imports (:func:`module_closure`), read once per process: the hash describes the code this
+    process loaded, even when the files are edited while it runs."""
+    return _hash_sources(module, PACKAGE_DIR)
+
+
+def source_hash_at(module: str, root) -> str:
+    """:func:`source_hash` of the package copy in folder ``root`` (not memoised)."""
+    return _hash_sources(module, Path(root))
+
+
+# --------------------------------------------------------------------------- platform
+def _version(dist: str) -> str:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "absent"
+
+
+@functools.lru_cache(maxsize=1)
+def platform() -> dict:
+    """What besides our source can change a computed number: the Python, numpy, numba and
+    llvmlite versions and the CPU numba compiles for (name and feature string)."""
+    try:
+        from llvmlite import binding as llvm
+
+        cpu = {"name": llvm.get_host_cpu_name(), "features": llvm.get_host_cpu_features().flatten()}
+    except Exception as exc:  # llvmlite missing or unable to tell: say so in the key
+        cpu = {"name": "unknown", "error": type(exc).__name__}
+    return {
+        "python": _platform.python_version(),
+        "machine": _platform.machine(),
+        "numpy": np.__version__,
+        "numba": _version("numba"),
+        "llvmlite": _version("llvmlite"),
+        "cpu": cpu,
+    }
+
+
+# --------------------------------------------------------------------------- keys
+def make_key(schema: str, module: str, parts: dict, source: str | None = None) -> str:
+    """The cache key of one result.
+
+    schema: what kind of entry (e.g. ``"dampersim.sweep-point"``); module: the dotted name
+    of the module whose code computes the result (its import closure is hashed); parts: the
+    inputs (parameter set, excitation, state, options), anything :func:`canonical` accepts;
+    source: a source hash to use instead of ``source_hash(module)`` (a worker pins the one
+    the parent used).
+    """
+    return digest(key_document(schema, module, parts, source))
+
+
+def key_document(schema: str, module: str, parts: dict, source: str | None = None) -> dict:
+    """The document :func:`make_key` hashes (for inspection and tests)."""
+    return {
+        "schema": schema,
+        "version": __version__,
+        "platform": platform(),
+        "source": source_hash(module) if source is None else source,
+        "parts": parts,
+    }
+
+
+__all__ = [
+    "canonical",
+    "digest",
+    "key_document",
+    "make_key",
+    "module_closure",
+    "platform",
+    "source_hash",
+    "source_hash_at",
+]

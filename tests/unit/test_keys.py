@@ -1,0 +1,76 @@
+"""Cache keys: source hashes follow the imports, so a changed module changes the key."""
+
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+from dampersim import keys
+from dampersim.errors import InputError
+from dampersim.sweeps import cache as sc
+
+RECORD = sc.RECORD_MODULE
+
+
+@pytest.fixture
+def package_copy(tmp_path):
+    """A copy of the dampersim sources to edit (caches and compiled files left out)."""
+    dst = tmp_path / "dampersim"
+    shutil.copytree(keys.PACKAGE_DIR, dst, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"))
+    return dst
+
+
+def test_copy_hashes_like_the_package(package_copy):
+    assert keys.source_hash_at(RECORD, package_copy) == keys.source_hash(RECORD)
+
+
+def test_changed_source_of_a_reached_module_changes_the_key(package_copy):
+    before = keys.source_hash_at(RECORD, package_copy)
+    # the transducer low pass sits in signal.py; sweep points reach it through results.py
+    path = package_copy / "signal.py"
+    path.write_text(path.read_text().replace("LOWPASS_CUTOFF_HZ = 10.0", "LOWPASS_CUTOFF_HZ = 10.5"))
+    assert keys.source_hash_at(RECORD, package_copy) != before
+
+
+def test_a_new_module_is_covered_once_something_imports_it(package_copy):
+    before = keys.source_hash_at(RECORD, package_copy)
+    (package_copy / "solver" / "extra_law.py").write_text("GAIN = 2.0\n")
+    assert keys.source_hash_at(RECORD, package_copy) == before  # nothing imports it yet
+    layout = package_copy / "solver" / "layout.py"
+    layout.write_text(layout.read_text() + "\nfrom dampersim.solver.extra_law import GAIN  # noqa: E402\n")
+    with_import = keys.source_hash_at(RECORD, package_copy)
+    assert with_import != before
+    (package_copy / "solver" / "extra_law.py").write_text("GAIN = 3.0\n")
+    assert keys.source_hash_at(RECORD, package_copy) != with_import
+
+
+def test_imports_inside_functions_and_relative_imports_are_followed(package_copy):
+    (package_copy / "probe.py").write_text("def f():\n    from . import units\n    from .signal import order_amplitudes\n")
+    closure = keys.module_closure("dampersim.probe", package_copy)
+    assert "dampersim.units" in closure and "dampersim.signal" in closure
+
+
+def test_a_module_the_result_does_not_reach_leaves_the_key_alone(package_copy):
+    before = keys.source_hash_at(RECORD, package_copy)
+    plotting = package_copy / "plotting" / "theme.py"
+    assert "dampersim.plotting.theme" not in keys.module_closure(RECORD, package_copy)
+    plotting.write_text(plotting.read_text() + "\n# a comment\n")
+    assert keys.source_hash_at(RECORD, package_copy) == before
+
+
+def test_canonical_form_is_exact_and_refuses_unknown_values():
+    assert keys.canonical(0.1) == {"f": (0.1).hex()}
+    assert keys.digest({"x": 1.0}) != keys.digest({"x": math.nextafter(1.0, 2.0)})
+    a = np.arange(4.0)
+    assert keys.digest({"a": a}) == keys.digest({"a": a.copy()}) != keys.digest({"a": a[::-1].copy()})
+    with pytest.raises(InputError, match="cache key"):
+        keys.canonical(object())
+
+
+def test_platform_names_the_libraries_and_cpu_that_shape_numbers():
+    plat = keys.platform()
+    for name in ("numpy", "numba", "llvmlite", "python", "cpu"):
+        assert plat[name]
+    doc = keys.key_document("probe", RECORD, {"x": 1})
+    assert doc["platform"] == plat and doc["source"] == keys.source_hash(RECORD)
