@@ -34,6 +34,7 @@ test: venv
 	rm -rf $(TEST_CACHE)
 	mkdir -p $(TEST_CACHE)
 	bash scripts/ensure-chromium.sh
+	$(VENV)/bin/lint-imports --no-cache
 	$(VENV_PY) -m pytest $(PYTEST_ARGS)
 
 bench: venv

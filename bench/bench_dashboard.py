@@ -137,13 +137,13 @@ def main(argv=None) -> int:
         import app as app_module  # noqa: E402  (sets the numba threading layer first)
         from dampersim import views
         from dampersim.simulation import ensure_compiled
-        from dampersim.sweeps.executor import _cpu_count
+        from dampersim.sweeps.executor import cpu_count
 
         t_import = time.perf_counter() - t0
         t_compile = ensure_compiled()
         pages_cm = sys.modules["pages.colourmap"]
         client = Client(app_module.app)
-        print(f"dashboard benchmark: {_cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start; "
+        print(f"dashboard benchmark: {cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start; "
               f"app import {t_import:.2f} s, kernel load/compile {t_compile:.2f} s (not timed below)")
 
         # 1. Explorer, cache miss, default settings

@@ -30,11 +30,11 @@ def main(argv=None) -> int:
     from dampersim import default_parameters
     from dampersim.simulation import ensure_compiled
     from dampersim.sweeps import ResultCache, make_grid, parse_range, run_sweep
-    from dampersim.sweeps.executor import _cpu_count
+    from dampersim.sweeps.executor import cpu_count
 
     system = default_parameters()
     points = make_grid(parse_range(args.speeds), [args.torque], args.orders)
-    workers = args.workers or _cpu_count()
+    workers = args.workers or cpu_count()
     compile_s = ensure_compiled()
     print(f"sweep: {len(points)} points, {args.speeds} rpm, {args.torque:g} N m, orders {args.orders}; "
           f"{system.solver.duration:g} s simulated per point; {workers} worker processes "

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import time
 
+import diskcache
 import numpy as np
 
 from dampersim.errors import InputError
+from dampersim import keys
+from dampersim.sweeps.cache import cache_dir, key_parts
+from dampersim.sweeps.executor import SweepCancelled, cpu_count, process_pool, run_sweep
 from dampersim.sweeps.grid import TestPoint
 from dampersim.units import rpm_to_rad_s
 
@@ -63,8 +66,6 @@ def warn_speeds(rpms, prog: Progress):
 
 def mr_sweep(system, points, prog: Progress, executor, cancel=None, orders=None):
     """run_sweep over ``points`` (cached); returns its table."""
-    from dampersim.sweeps.executor import run_sweep
-
     kw = {}
     if orders is not None:
         kw["orders"] = orders
@@ -91,29 +92,25 @@ def pct(a, b) -> float:
 
 # ----------------------------------------------------------------- cached single runs
 def _store():
-    import diskcache
-
-    from dampersim.sweeps.cache import cache_dir
-
     return diskcache.Cache(str(cache_dir() / "studies"))
 
 
-def run_key(tag, system, excitation, duration) -> str:
-    from dampersim.sweeps.cache import cache_key
-
-    base = cache_key(system, excitation, duration)
-    return hashlib.sha256(f"{tag}:{base}".encode()).hexdigest()
+def run_key(tag, fn, system, excitation, duration) -> str:
+    """Key of one cached study run: ``tag``, the run's inputs as a sweep point keys them,
+    and the source of the module that defines ``fn`` (with everything it imports)."""
+    parts = {"tag": tag, "function": fn.__qualname__, "inputs": key_parts(system, excitation, duration)}
+    return keys.make_key("dampersim.study-run", fn.__module__, parts)
 
 
 def cached_runs(tag, fn, jobs, prog: Progress, parallel: bool, cancel=None):
     """Evaluate ``fn(system, excitation, duration)`` -> JSON-able dict for each job
     ``(system, excitation, duration)``, from the study cache when present; in a process
     pool when ``parallel``."""
-    keys = [run_key(tag, *j) for j in jobs]
+    run_keys = [run_key(tag, fn, *j) for j in jobs]
     out = [None] * len(jobs)
     todo = []
     with _store() as store:
-        for i, k in enumerate(keys):
+        for i, k in enumerate(run_keys):
             v = store.get(k)
             if v is not None:
                 out[i] = json.loads(v)
@@ -123,30 +120,22 @@ def cached_runs(tag, fn, jobs, prog: Progress, parallel: bool, cancel=None):
 
     def save(i, value):
         with _store() as store:
-            store.set(keys[i], json.dumps(value))
+            store.set(run_keys[i], json.dumps(value))
         out[i] = value
         prog.add(1)
 
     if todo and parallel and len(todo) > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        from dampersim.sweeps.executor import _cpu_count, _pool_initializer
-
-        with ProcessPoolExecutor(max_workers=min(_cpu_count(), len(todo)), initializer=_pool_initializer) as pool:
+        with process_pool(min(cpu_count(), len(todo))) as pool:
             futs = {pool.submit(fn, *jobs[i]): i for i in todo}
             for f in futs:
                 if _cancelled(cancel):
                     for g in futs:
                         g.cancel()
-                    from dampersim.sweeps.executor import SweepCancelled
-
                     raise SweepCancelled(prog.done, prog.total)
                 save(futs[f], f.result())
     else:
         for i in todo:
             if _cancelled(cancel):
-                from dampersim.sweeps.executor import SweepCancelled
-
                 raise SweepCancelled(prog.done, prog.total)
             save(i, fn(*jobs[i]))
     return out

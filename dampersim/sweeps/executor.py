@@ -280,7 +280,7 @@ class _DaskBackend:
             ) from None
         self.cluster = None
         if address is None:
-            n = workers or _cpu_count()
+            n = workers or cpu_count()
             self.cluster = LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                 dashboard_address=None,
@@ -343,7 +343,8 @@ class _DaskBackend:
         self._close_cluster()
 
 
-def _cpu_count() -> int:
+def cpu_count() -> int:
+    """Cores this process may use (its CPU affinity where the OS tells it)."""
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
@@ -562,7 +563,7 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                         "restart this process (or use executor='serial')"
                     )
 
-                backend = _PoolBackend(min(workers or _cpu_count(), len(missing)))
+                backend = _PoolBackend(min(workers or cpu_count(), len(missing)))
             else:
                 backend = _DaskBackend(address, workers)
             queue = list(missing)
