@@ -4,18 +4,11 @@
 (:mod:`dampersim.sweeps.cache`) and computes only the misses:
 
 * ``"serial"``: one after the other in this process;
-* ``"processes"`` (default): a ``ProcessPoolExecutor`` over all cores. The parent loads
-  or compiles the kernel once before the pool starts. On Linux, from a process with no
-  other Python thread, workers are forked: they start at once with the parent's loaded
-  kernel and code (about 1.5 s less per cold sweep on 2 cores than importing dampersim
-  and loading the kernel in each new worker). Otherwise (other threads, which a fork
-  could copy in a locked state, or another OS) workers are spawned and load numba's
-  on-disk cache (wherever numba keeps it for this installation; ``NUMBA_CACHE_DIR`` is
-  inherited when set and not touched otherwise). Scripts that call it need the usual
-  ``if __name__ == "__main__":`` guard of spawned multiprocessing;
+* ``"processes"`` (default): a process pool over all cores, forked where that is safe
+  (:mod:`dampersim.sweeps.backends`); the parent loads or compiles the kernel once first;
 * ``"dask"``: a ``distributed`` scheduler at ``scheduler=`` or ``$DAMPERSIM_SCHEDULER``
   (a local cluster on this machine when neither is set). Workers must run the same
-  dampersim version and source; a worker that does not is refused.
+  dampersim version, source and platform; a worker that does not is refused.
 
 Only the parent writes the cache, one transaction per point, as results arrive: a
 cancelled or failed sweep keeps every finished point and never leaves a partial entry.
@@ -26,35 +19,31 @@ output torque and their magnification ratio per test point and engine order.
 from __future__ import annotations
 
 import math
-import multiprocessing
 import os
-import signal
-import sys
-import threading
 import time
-import traceback
-from concurrent import futures as cf
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from dampersim import keys as _keys
-from dampersim.version import __version__
-from dampersim.fileio import write_parquet_atomic
 from dampersim.analysis.colourmap import SWEEP_COLUMNS
 from dampersim.errors import DampersimError, InputError
+from dampersim.fileio import write_parquet_atomic
 from dampersim.sweeps import cache as _cache
+from dampersim.sweeps.backends import (  # noqa: F401 (SCHEDULER_ENV, cpu_count, process_pool: part of this module's API)
+    SCHEDULER_ENV,
+    DaskBackend,
+    PoolBackend,
+    compute_task,
+    cpu_count,
+    process_pool,
+)
+from dampersim.version import __version__
 from dampersim.sweeps.grid import TestPoint
 
 #: Accepted values of ``executor``.
 EXECUTORS = ("processes", "serial", "dask")
-#: Environment variable with the address of a Dask scheduler (e.g. tcp://host:8786).
-SCHEDULER_ENV = "DAMPERSIM_SCHEDULER"
-#: Seconds allowed to connect to a Dask scheduler.
-CONNECT_TIMEOUT = 5.0
-#: Seconds to wait for a reachable scheduler that has no workers yet.
-WORKER_WAIT = 30.0
 #: Orders in the table by default: the first eight engine orders ([thesis] §3.4).
 DEFAULT_ORDERS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)
 #: Magnification is NaN where the input amplitude is below this share of the point's
@@ -185,170 +174,6 @@ class SweepResult:
         """Write :attr:`table` to ``path`` atomically (temporary file + rename); returns
         the absolute path."""
         return write_parquet_atomic(self.table, path)
-
-
-# --------------------------------------------------------------------------- worker side
-def _environment() -> tuple:
-    """What a worker must share with the parent for its result to match the key: the
-    package version, the source hash and the platform (library versions, CPU target)."""
-    return (__version__, _cache.kernel_source_hash(), _keys.digest(_keys.platform()))
-
-
-def _compute_task(system, point, duration, window, key, expected_env):
-    """Compute one point; runs in a worker. Never raises: returns ("ok", record bytes),
-    ("mismatch", worker environment) or ("error", type name, message) so that no
-    exception has to survive pickling between processes."""
-    try:
-        env = _environment()
-        if tuple(env) != tuple(expected_env):
-            return ("mismatch", env)
-        record = _cache.compute_record(system, point, duration=duration, window=window, key=key)
-        return ("ok", record.to_bytes())
-    except DampersimError as exc:
-        return ("error", type(exc).__name__, str(exc))
-    except Exception as exc:  # report, do not lose, unexpected failures
-        return ("error", type(exc).__name__, f"{exc}\n{traceback.format_exc()}")
-
-
-def _pool_initializer():
-    # Ctrl-C goes to the whole process group: let the parent decide (it cancels cleanly).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        from dampersim.simulation import ensure_compiled
-
-        ensure_compiled()
-    except Exception:  # the first task will report the problem with context
-        pass
-
-
-def _start_method() -> str:
-    """"fork" where it is safe and available (see the module docstring), else "spawn"."""
-    if sys.platform.startswith("linux") and threading.active_count() == 1:
-        return "fork"
-    return "spawn"
-
-
-def process_pool(workers: int) -> cf.ProcessPoolExecutor:
-    """A pool of ``workers`` processes for kernel work, started as the module docstring
-    describes (fork where safe, else spawn). The kernel is loaded in this process first,
-    so forked workers inherit it and spawned ones only read numba's disk cache."""
-    from dampersim.simulation import ensure_compiled
-
-    ensure_compiled()
-    ctx = multiprocessing.get_context(_start_method())
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pool_initializer)
-
-
-# --------------------------------------------------------------------------- backends
-class _PoolBackend:
-    name = "processes"
-
-    def __init__(self, workers):
-        self.pool = process_pool(workers)
-        # one task queued behind each running one: a worker that finishes starts its next
-        # point at once instead of waiting for this process to store the result and
-        # submit; a queued task is still cancellable (Future.cancel) when the sweep stops
-        self.slots = 2 * workers
-
-    def submit(self, *args):
-        return self.pool.submit(_compute_task, *args)
-
-    def wait(self, fs, timeout):
-        done, _ = cf.wait(list(fs), timeout=timeout, return_when=cf.FIRST_COMPLETED)
-        return done
-
-    def cancel(self, fut) -> bool:
-        return fut.cancel()
-
-    def result(self, fut):
-        return fut.result()
-
-    def close(self, abort=False):
-        self.pool.shutdown(wait=not abort, cancel_futures=True)
-
-
-class _DaskBackend:
-    name = "dask"
-
-    def __init__(self, address, workers):
-        try:
-            from distributed import Client, LocalCluster
-        except ImportError:
-            raise InputError(
-                "executor 'dask' needs dask[distributed]; install it with "
-                "pip install 'dampersim[dask]'"
-            ) from None
-        self.cluster = None
-        if address is None:
-            n = workers or cpu_count()
-            self.cluster = LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                dashboard_address=None,
-            )
-            address = self.cluster.scheduler_address
-        self.address = address
-        try:
-            self.client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-        except Exception as exc:
-            self._close_cluster()
-            raise InputError(
-                f"cannot reach the Dask scheduler at {address!r} within {CONNECT_TIMEOUT:g} s "
-                f"({type(exc).__name__}: {exc}); start one (e.g. `dask scheduler` and "
-                f"`dask worker ADDRESS`) or pass another address with --scheduler / "
-                f"{SCHEDULER_ENV}"
-            ) from None
-        try:
-            nthreads = sum(self.client.nthreads().values())
-            if nthreads == 0:
-                self.client.wait_for_workers(1, timeout=WORKER_WAIT)
-                nthreads = sum(self.client.nthreads().values())
-        except Exception:
-            self.close(abort=True)
-            raise InputError(
-                f"the Dask scheduler at {address!r} has no workers (waited {WORKER_WAIT:g} s); "
-                "start workers with `dask worker ADDRESS`"
-            ) from None
-        self.slots = max(1, nthreads)
-
-    def submit(self, *args):
-        return self.client.submit(_compute_task, *args, pure=False)
-
-    def wait(self, fs, timeout):
-        deadline = time.monotonic() + timeout
-        while True:
-            done = {f for f in fs if f.done()}
-            if done or time.monotonic() >= deadline:
-                return done
-            time.sleep(0.02)
-
-    def cancel(self, fut) -> bool:
-        return False  # every submitted task is running (in-flight <= worker threads): let it finish
-
-    def result(self, fut):
-        return fut.result()
-
-    def _close_cluster(self):
-        if self.cluster is not None:
-            try:
-                self.cluster.close()
-            except Exception:
-                pass
-            self.cluster = None
-
-    def close(self, abort=False):
-        try:
-            self.client.close()
-        except Exception:
-            pass
-        self._close_cluster()
-
-
-def cpu_count() -> int:
-    """Cores this process may use (its CPU affinity where the OS tells it)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
 
 
 def _cancel_check(cancel):
@@ -551,7 +376,7 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                 if is_cancelled():
                     cancelled = True
                     break
-                failure = finish(k, _compute_task(system, first_point[k], duration, window, k, env))
+                failure = finish(k, compute_task(system, first_point[k], duration, window, k, env))
                 if failure is not None:
                     break
         else:
@@ -563,9 +388,9 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                         "restart this process (or use executor='serial')"
                     )
 
-                backend = _PoolBackend(min(workers or cpu_count(), len(missing)))
+                backend = PoolBackend(min(workers or cpu_count(), len(missing)))
             else:
-                backend = _DaskBackend(address, workers)
+                backend = DaskBackend(address, workers)
             queue = list(missing)
             inflight = {}
             abort = True
