@@ -11,7 +11,7 @@ import pytest
 from dampersim import default_parameters
 from dampersim.errors import InputError
 from dampersim.sweeps import cache as sc
-from dampersim.sweeps import commands
+from dampersim.cli import sweeps as commands
 from dampersim.sweeps.executor import run_sweep
 from dampersim.sweeps.grid import make_grid
 

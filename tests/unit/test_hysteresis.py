@@ -9,7 +9,7 @@ import pytest
 
 import dampersim
 from dampersim.analysis import hysteresis as hy
-from dampersim.analysis.commands import add_parsers, parse_speeds_rpm
+from dampersim.cli.analysis import add_parsers, parse_speeds_rpm
 from dampersim.errors import InputError
 from dampersim.units import deg_to_rad, rpm_to_rad_s
 

@@ -9,7 +9,7 @@ import pytest
 
 import dampersim
 from dampersim.analysis import modal
-from dampersim.analysis.commands import add_parsers
+from dampersim.cli.analysis import add_parsers
 from dampersim.errors import InputError
 from dampersim.solver.linear import linearise
 from dampersim.units import rpm_to_rad_s

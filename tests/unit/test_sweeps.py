@@ -1,6 +1,5 @@
 """Sweeps: grids, run_sweep (serial and processes), cancellation, and the CLI commands."""
 
-import argparse
 import io
 import json
 import math
@@ -12,9 +11,10 @@ import pandas as pd
 import pytest
 
 from dampersim import default_parameters
+from dampersim.cli import build_parser
+from dampersim.cli.sweeps import ProgressBar
 from dampersim.errors import DampersimError, InputError, SimulationDiverged
 from dampersim.sweeps import cache as sc
-from dampersim.sweeps import commands
 from dampersim.sweeps.executor import (
     SweepCancelled,
     SweepPointFailed,
@@ -235,10 +235,7 @@ def test_run_sweep_rejects_non_points(system):
 
 # --------------------------------------------------------------------------- CLI
 def cli(argv):
-    parser = argparse.ArgumentParser(prog="dampersim")
-    sub = parser.add_subparsers(dest="command", required=True)
-    commands.add_parsers(sub)
-    args = parser.parse_args(argv)
+    args = build_parser().parse_args(argv)
     return args.func(args)
 
 
@@ -283,7 +280,7 @@ def test_sweep_command_text_summary_and_errors(cache_dir, tmp_path, capsys):
 
 def test_progress_bar_without_terminal():
     stream = io.StringIO()
-    bar = commands.ProgressBar(stream)
+    bar = ProgressBar(stream)
     for done in range(0, 21):
         bar(done, 20, 0)
     lines = stream.getvalue().splitlines()

@@ -1,4 +1,9 @@
-"""CLI: ``python -m dampersim study NAME ...`` and ``python -m dampersim pulsation ...``."""
+"""Commands ``study`` and ``pulsation``: the thesis chapter 7 studies and the motored-engine pulsation generator.
+
+Units at this edge are rpm, bar, N m and s. Register the commands with
+:func:`add_parsers`; each command function takes the parsed ``args`` and returns the exit
+status 0, bad input raises a :class:`~dampersim.errors.DampersimError`.
+"""
 
 from __future__ import annotations
 
@@ -7,16 +12,18 @@ import math
 import os
 import sys
 
+from dampersim.cli.options import add_parameter_options, parameters_from_args, prepare_output
 from dampersim.errors import InputError
 
 
 def cmd_study(args) -> int:
-    from dampersim.cli import _system_from_args
+    """Run one study; print its checks, optionally write NAME.json and its figures."""
     from dampersim.studies import STUDIES, run_study
 
     if args.name not in STUDIES:
         raise InputError(f"study {args.name!r}: accepted is one of {', '.join(STUDIES)}")
-    system = _system_from_args(args)
+    system = parameters_from_args(args)
+    out_dir = prepare_output(args.out, "folder") if args.out else None
 
     def progress(done, total, cached):
         if not args.json and sys.stderr.isatty():
@@ -25,16 +32,16 @@ def cmd_study(args) -> int:
     result = run_study(args.name, system, quick=args.quick, executor=args.executor, progress=progress)
     for w in result.get("warnings", []):
         print(f"warning: {w}", file=sys.stderr)
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        path = os.path.join(args.out, f"{args.name}.json")
-        with open(path, "w") as fh:
-            json.dump(result, fh, indent=1, allow_nan=False)
+    if out_dir:
+        from dampersim.fileio import write_text_atomic
+
+        write_text_atomic(os.path.join(out_dir, f"{args.name}.json"), json.dumps(result, indent=1, allow_nan=False))
         try:
+            from dampersim.plotting import write_html
             from dampersim.plotting.studies import study_figures
 
             for i, fig in enumerate(study_figures(result)):
-                fig.write_html(os.path.join(args.out, f"{args.name}-{i + 1}.html"), include_plotlyjs="cdn")
+                write_html(fig, os.path.join(out_dir, f"{args.name}-{i + 1}.html"), include_plotlyjs="cdn")
         except ImportError:
             pass
     if args.json:
@@ -49,7 +56,9 @@ def cmd_study(args) -> int:
 
 
 def cmd_pulsation(args) -> int:
-    from dampersim.excitation.pulsation import check_speed_rpm, pressure_warnings, simulate_pulsation
+    """Simulate the pulsation generator alone or coupled to the damper; print its orders."""
+    from dampersim.excitation.pulsation import check_speed_rpm, pressure_warnings
+    from dampersim.simulation import simulate_pulsation
     from dampersim.parameters.engine import check_pressure_bar
     from dampersim.units import rpm_to_rad_s
 
@@ -58,11 +67,7 @@ def cmd_pulsation(args) -> int:
         print(w, file=sys.stderr)
     if not (math.isfinite(args.torque) and abs(args.torque) <= 1000):
         raise InputError(f"--torque {args.torque!r} N m: accepted is a mean torque within +-1000 N m")
-    system = None
-    if args.coupled:
-        from dampersim.cli import _system_from_args
-
-        system = _system_from_args(args)
+    system = parameters_from_args(args) if args.coupled else None
     res = simulate_pulsation(rpm_to_rad_s(args.speed), p, args.torque, coupled=args.coupled, system=system)
     s = res.summary()
     if args.json:
@@ -77,25 +82,29 @@ def cmd_pulsation(args) -> int:
     return 0
 
 
-def add_parsers(sub) -> None:
+def add_parsers(subparsers) -> None:
+    """Register ``study`` and ``pulsation`` on an argparse subparsers object."""
     from dampersim.studies import STUDIES
 
-    s = sub.add_parser("study", help="run a thesis chapter 7 study: " + ", ".join(STUDIES))
+    s = subparsers.add_parser("study", help="run a thesis chapter 7 study: " + ", ".join(STUDIES))
     s.add_argument("name", metavar="NAME", help="one of " + ", ".join(STUDIES))
-    s.add_argument("--params", metavar="FILE.toml", help="damper parameter set (default: built-in damper)")
-    s.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a damper parameter by dotted name")
+    add_parameter_options(s, params_help="damper parameter set (default: built-in damper)",
+                          set_help="override a damper parameter by dotted name")
     s.add_argument("--quick", action="store_true", help="reduced grid (seconds instead of minutes)")
     s.add_argument("--executor", choices=("processes", "serial"), default="processes")
     s.add_argument("--json", action="store_true", help="print the result document as JSON")
-    s.add_argument("--out", metavar="DIR", help="write NAME.json (and figures) into DIR")
+    s.add_argument("--out", metavar="DIR", help="write NAME.json (and figures) into DIR (created if missing)")
     s.set_defaults(func=cmd_study)
 
-    p = sub.add_parser("pulsation", help="motored-engine pulsation generator: order content of its output torque")
+    p = subparsers.add_parser("pulsation", help="motored-engine pulsation generator: order content of its output torque")
     p.add_argument("--pressure", type=float, default=2.5, metavar="BAR", help="charge pressure [bar abs] (0.5-4)")
     p.add_argument("--speed", type=float, required=True, metavar="RPM")
     p.add_argument("--torque", type=float, default=200.0, metavar="NM", help="mean torque [N m]")
     p.add_argument("--coupled", action="store_true", help="drive the damper and rig instead of a stiff propshaft")
-    p.add_argument("--params", metavar="FILE.toml", help="damper parameter set for --coupled")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a damper parameter (with --coupled)")
+    add_parameter_options(p, params_help="damper parameter set for --coupled",
+                          set_help="override a damper parameter (with --coupled)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_pulsation)
+
+
+__all__ = ["add_parsers", "cmd_study", "cmd_pulsation"]

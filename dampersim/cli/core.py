@@ -1,39 +1,25 @@
-"""Command line: ``python -m dampersim <command> ...`` (rpm, N m and Hz at this edge).
+"""Commands ``simulate``, ``modes`` and ``params``: one test point, the linearised model and parameter sets.
 
-Every command reports bad input as one line on stderr naming the field, the value and
-what is accepted, and exits with status 2 (no traceback).
+Units at this edge are rpm, N m, Hz and s. Register the commands with
+:func:`add_parsers`; each command function takes the parsed ``args`` and returns the exit
+status 0, bad input raises a :class:`~dampersim.errors.DampersimError`.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 
 import numpy as np
 
-from dampersim.errors import DampersimError, InputError
+from dampersim.cli.options import MAX_RPM, MIN_RPM, add_parameter_options, parameters_from_args, prepare_output
+from dampersim.errors import InputError
 from dampersim.jsonsafe import jsonable
 from dampersim.units import rpm_to_rad_s
 
 ORDERS = tuple(range(1, 9))
-MIN_RPM, MAX_RPM = 300.0, 6000.0
 VALIDATED_RPM = (900.0, 2800.0)  # [thesis] §3.3.2: tested speed range
-
-
-def _system_from_args(args):
-    from dampersim.parameters import load_parameters, parse_set_options
-
-    updates = parse_set_options(getattr(args, "set", None))
-    if getattr(args, "no_friction", False):
-        updates["friction.enabled"] = False
-    if getattr(args, "no_hardstops", False):
-        updates["hardstops.enabled"] = False
-    mode = getattr(args, "output_motor", None)
-    if mode in ("pi", "held"):
-        updates["motor.mode"] = mode
-    return load_parameters(getattr(args, "params", None), updates)
 
 
 def _speed(rpm: float) -> float:
@@ -49,23 +35,24 @@ def _speed(rpm: float) -> float:
 
 
 def cmd_simulate(args) -> int:
+    """Simulate one test point; print order amplitudes and magnification, optionally
+    write the result (Parquet, :meth:`~dampersim.results.SimulationResult.save`)."""
     from dampersim.analysis.metrics import magnification_ratio
     from dampersim.excitation import OrderSum, parse_orders
     from dampersim.simulation import simulate
 
-    system = _system_from_args(args)
+    system = parameters_from_args(args)
     orders = parse_orders(args.orders)
     if not math.isfinite(args.torque) or abs(args.torque) > 5000:
         raise InputError(f"--torque {args.torque!r} N m: accepted is a mean torque within +-5000 N m")
     ex = OrderSum(speed=_speed(args.speed), mean_torque=args.torque, orders=orders)
+    out = prepare_output(args.out, "file") if args.out else None
     res = simulate(system, ex, duration=args.duration, record_segments=False)
     a_in, a_out = res.order_amplitudes(ORDERS)
     # an order without input (below 0.1 % of the largest) has no meaningful ratio
     mr = magnification_ratio(a_in, a_out, min_input=max(1e-3 * float(np.max(a_in)), 1e-6))
-    if args.out:
-        from dampersim.fileio import write_parquet_atomic
-
-        write_parquet_atomic(res.to_frame(), args.out)
+    if out:
+        res.save(out)
     if args.json:
         print(
             json.dumps(
@@ -89,10 +76,12 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_modes(args) -> int:
+    """Print (or dump as JSON) the linearised model, its natural frequencies and mode
+    shapes; optionally write a Campbell diagram."""
     from dampersim.analysis.modal import campbell, modal_analysis
     from dampersim.solver.linear import linearise
 
-    system = _system_from_args(args)
+    system = parameters_from_args(args)
     motor = args.output_motor or "free"
     lm = linearise(system, motor=motor)
     modal = modal_analysis(system, motor=motor)
@@ -103,8 +92,9 @@ def cmd_modes(args) -> int:
     if args.out:
         from dampersim import plotting
 
+        out = prepare_output(args.out, "file")
         fig = plotting.campbell_figure(campbell(modal), max_frequency_hz=400.0)
-        d["campbell_html"] = plotting.write_html(fig, args.out)
+        d["campbell_html"] = plotting.write_html(fig, out)
     if args.json:
         print(json.dumps(d))
     else:
@@ -118,9 +108,10 @@ def cmd_modes(args) -> int:
 
 
 def cmd_params(args) -> int:
-    from dampersim.parameters import dumps_toml, load_parameters, parse_set_options
+    """Print a parameter set as TOML (``show``) or check it (``validate``)."""
+    from dampersim.parameters import dumps_toml
 
-    system = load_parameters(args.file, parse_set_options(args.set))
+    system = parameters_from_args(args)
     if args.action == "show":
         print(dumps_toml(system), end="")
     else:
@@ -128,58 +119,31 @@ def cmd_params(args) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="dampersim", description="Torque converter damper simulation")
-    sub = p.add_subparsers(dest="command", required=True)
-
-    def common(sp, motor_choices):
-        sp.add_argument("--params", metavar="FILE.toml", help="parameter set (default: built-in damper)")
-        sp.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter by dotted name")
-        sp.add_argument("--no-friction", action="store_true", help="shorthand for --set friction.enabled=false")
-        sp.add_argument("--no-hardstops", action="store_true", help="shorthand for --set hardstops.enabled=false")
-        sp.add_argument("--output-motor", choices=motor_choices, help="output motor control")
-        sp.add_argument("--json", action="store_true", help="machine-readable output")
-
-    s = sub.add_parser("simulate", help="one test point: order amplitudes and magnification")
+def add_parsers(subparsers) -> None:
+    """Register ``simulate``, ``modes`` and ``params`` on an argparse subparsers object."""
+    s = subparsers.add_parser("simulate", help="one test point: order amplitudes and magnification")
     s.add_argument("--speed", type=float, required=True, metavar="RPM")
     s.add_argument("--torque", type=float, required=True, metavar="NM", help="mean torque [N m]")
     s.add_argument("--orders", default="2:300", help='ORDER:AMPLITUDE[@PHASE_DEG],... e.g. "2:300,4:100"')
     s.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time [s]")
-    s.add_argument("--out", metavar="FILE.parquet", help="write the time series")
-    common(s, ("pi", "held"))
+    s.add_argument("--out", metavar="FILE.parquet", help="write the result: time series and run data (missing folders are created)")
+    add_parameter_options(s, shorthands=True)
+    s.add_argument("--output-motor", choices=("pi", "held"), help="output motor control")
+    s.add_argument("--json", action="store_true", help="machine-readable output")
     s.set_defaults(func=cmd_simulate)
 
-    m = sub.add_parser("modes", help="linearised model (M, C, K), natural frequencies, mode shapes")
-    common(m, ("free", "held"))
+    m = subparsers.add_parser("modes", help="linearised model (M, C, K), natural frequencies, mode shapes")
+    add_parameter_options(m, shorthands=True)
+    m.add_argument("--output-motor", choices=("free", "held"), help="output motor control")
+    m.add_argument("--json", action="store_true", help="machine-readable output")
     m.add_argument("--out", metavar="FILE.html", help="write a Campbell diagram (orders 1-8 vs the modes)")
     m.set_defaults(func=cmd_modes)
 
-    pa = sub.add_parser("params", help="show or validate a parameter set")
+    pa = subparsers.add_parser("params", help="show or validate a parameter set")
     pa.add_argument("action", choices=("show", "validate"))
-    pa.add_argument("file", nargs="?", default=None)
+    pa.add_argument("params", nargs="?", default=None, metavar="file")
     pa.add_argument("--set", action="append", metavar="NAME=VALUE")
     pa.set_defaults(func=cmd_params)
 
-    from dampersim.analysis.commands import add_parsers as add_analysis
-    from dampersim.sweeps.commands import add_parsers as add_sweeps
 
-    add_sweeps(sub)
-    add_analysis(sub)
-    from dampersim.studies.commands import add_parsers as add_studies
-
-    add_studies(sub)
-    from dampersim.discrepancy.commands import add_parsers as add_discrepancy
-    add_discrepancy(sub)
-    return p
-
-
-def main(argv=None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        return args.func(args)
-    except DampersimError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:
-        return 0
+__all__ = ["add_parsers", "cmd_simulate", "cmd_modes", "cmd_params"]

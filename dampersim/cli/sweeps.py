@@ -1,11 +1,12 @@
-"""CLI commands ``sweep`` and ``orders`` (rpm, N m, Hz and s at this edge).
+"""Commands ``sweep`` and ``map``: grids of test points run through the result cache, with tables and figures.
 
-Registered on the main parser by ``add_parsers(subparsers)``; each command function takes
-the parsed ``args`` and returns an exit code. Bad input raises a DampersimError subclass,
-which the main CLI prints as one line (exit status 2).
+Units at this edge are rpm, N m, Hz and s. Register the commands with
+:func:`add_parsers`; each command function takes the parsed ``args`` and returns the exit
+status 0. Bad input raises a DampersimError subclass, which :func:`dampersim.cli.main`
+prints as one line (exit status 2).
 
     dampersim sweep --speeds 900:2800:10 --torque 200 --orders "2:300,4:100" --out out/sweep
-    dampersim orders record.csv --rpm 1500 --json
+    dampersim map --speeds 900:2000:100 --torque 50:500:50 --out out/map
 """
 
 from __future__ import annotations
@@ -20,11 +21,9 @@ import time
 
 import numpy as np
 
+from dampersim.cli.options import add_parameter_options, parameters_from_args, prepare_output
 from dampersim.errors import InputError
-from dampersim.jsonsafe import jsonable
 
-TIME_COLUMNS = ("time_s", "time", "t")
-DEFAULT_SIGNAL_COLUMN = "output_torque_nm"
 TABLE_NAME = "sweep.parquet"
 
 
@@ -171,11 +170,10 @@ def _cli_sweep(args):
     """Parse the grid options, run the sweep with a progress bar and Ctrl-C cancellation,
     write OUT/sweep.parquet. Returns (system, result, out_dir, table_path)."""
     from dampersim.excitation import parse_orders
-    from dampersim.parameters import load_parameters, parse_set_options
     from dampersim.sweeps.executor import run_sweep
     from dampersim.sweeps.grid import make_grid, parse_range, parse_torques
 
-    system = load_parameters(getattr(args, "params", None), parse_set_options(getattr(args, "set", None)))
+    system = parameters_from_args(args)
     speeds = parse_range(args.speeds)
     torques = parse_torques(args.torque)
     points = make_grid(speeds, torques, parse_orders(args.orders))
@@ -186,13 +184,7 @@ def _cli_sweep(args):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise InputError(f"--{name} {value!r}: accepted is a positive time in s")
 
-    out_dir = os.path.abspath(args.out)
-    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-        raise InputError(f"--out {args.out!r}: exists and is not a folder")
-    try:
-        os.makedirs(out_dir, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"--out {args.out!r}: cannot create the folder ({exc.strerror or exc})") from None
+    out_dir = prepare_output(args.out, "folder")
 
     bar = ProgressBar(sys.stderr, enabled=not args.no_progress)
     cancel = threading.Event()
@@ -299,165 +291,6 @@ def cmd_map(args) -> int:
     return 0
 
 
-# --------------------------------------------------------------------------- orders
-def _read_table(path):
-    import pandas as pd
-
-    if not os.path.isfile(path):
-        raise InputError(f"file {path!r} does not exist (or is not a file)")
-    ext = os.path.splitext(path)[1].lower()
-    try:
-        if ext in (".csv", ".txt"):
-            frame = pd.read_csv(path)
-        elif ext in (".parquet", ".pq"):
-            frame = pd.read_parquet(path)
-        else:
-            raise InputError(
-                f"file {path!r}: unknown file type {ext or '(no extension)'!r}; accepted are "
-                ".csv and .parquet"
-            )
-    except InputError:
-        raise
-    except pd.errors.EmptyDataError:
-        raise InputError(f"file {path!r} is empty; accepted is a table with a header row") from None
-    except Exception as exc:
-        raise InputError(f"file {path!r} cannot be read as {ext[1:]} ({type(exc).__name__}: {exc})") from None
-    frame.columns = [str(c).strip() for c in frame.columns]
-    if frame.shape[0] == 0:
-        raise InputError(f"file {path!r} has no data rows (columns: {', '.join(frame.columns)})")
-    return frame
-
-
-def _is_numeric(series) -> bool:
-    import pandas as pd
-
-    return pd.api.types.is_numeric_dtype(series) and not pd.api.types.is_bool_dtype(series)
-
-
-def order_amplitudes_of_file(path, rpm, column=None, fs=None, orders=None, window=None):
-    """Order amplitudes of one time series in a CSV or Parquet file ([thesis] §3.4).
-
-    Args:
-        path: .csv or .parquet file with a time column (time_s, time or t) [s], or give
-            ``fs``.
-        rpm: mean shaft speed over the record [rpm].
-        column: signal column [N m]; default ``output_torque_nm`` if present, else the
-            first numeric column that is not the time.
-        fs: sample rate [Hz]; overrides the time column.
-        orders: engine orders (default 1..8).
-        window: analyse only the last ``window`` seconds [s] (default: the whole record;
-            the thesis uses 1.25 s).
-
-    Returns:
-        dict with ``orders``, ``amplitude_nm``, ``column``, ``sample_rate_hz``, ``samples``.
-
-    Raises:
-        InputError: unknown file type, unreadable file, missing/non-numeric column (the
-            message lists the available ones), NaN/inf samples, non-uniform time, record
-            too short, orders at or above the Nyquist frequency.
-    """
-    from dampersim.signal import (
-        DEFAULT_ORDERS,
-        MIN_SAMPLES,
-        order_amplitudes,
-        sample_rate_from_time,
-    )
-    from dampersim.units import rpm_to_rad_s
-
-    try:
-        rpm = float(rpm)
-    except (TypeError, ValueError):
-        rpm = float("nan")
-    if not (math.isfinite(rpm) and rpm > 0):
-        raise InputError(f"--rpm {rpm!r}: accepted is a positive shaft speed in rpm")
-    frame = _read_table(path)
-    available = ", ".join(frame.columns)
-    time_col = next((c for c in TIME_COLUMNS if c in frame.columns), None)
-
-    if fs is not None:
-        try:
-            fs = float(fs)
-        except (TypeError, ValueError):
-            fs = float("nan")
-        if not (math.isfinite(fs) and fs > 0):
-            raise InputError(f"--fs {fs!r}: accepted is a positive sample rate in Hz")
-    elif time_col is None:
-        raise InputError(
-            f"file {path!r} has no time column ({', '.join(TIME_COLUMNS)}) and no --fs was given; "
-            f"available columns: {available}"
-        )
-    else:
-        if not _is_numeric(frame[time_col]):
-            raise InputError(f"time column {time_col!r} in {path!r} is not numeric (seconds expected)")
-        fs = sample_rate_from_time(frame[time_col].to_numpy(dtype=float))
-
-    if column is not None:
-        if column not in frame.columns:
-            raise InputError(f"column {column!r} is not in {path!r}; available columns: {available}")
-    elif DEFAULT_SIGNAL_COLUMN in frame.columns:
-        column = DEFAULT_SIGNAL_COLUMN
-    else:
-        candidates = [c for c in frame.columns if c != time_col and _is_numeric(frame[c])]
-        if not candidates:
-            raise InputError(f"file {path!r} has no numeric signal column; available columns: {available}")
-        column = candidates[0]
-    if not _is_numeric(frame[column]):
-        raise InputError(
-            f"column {column!r} in {path!r} is not numeric (dtype {frame[column].dtype}); "
-            f"pick a torque column with --column; available columns: {available}"
-        )
-    x = frame[column].to_numpy(dtype=float)
-    bad = np.flatnonzero(~np.isfinite(x))
-    if bad.size:
-        raise InputError(
-            f"column {column!r} in {path!r} has {bad.size} NaN/inf samples (first in data row "
-            f"{bad[0]}); clean or drop them"
-        )
-    if window is not None:
-        window = float(window)
-        if not (math.isfinite(window) and window > 0):
-            raise InputError(f"--window {window!r}: accepted is a positive time in s")
-        n = int(round(window * fs))
-        if n > x.size:
-            raise InputError(
-                f"--window {window:g} s needs {n} samples but {path!r} holds {x.size} "
-                f"({x.size / fs:.3g} s at {fs:g} Hz)"
-            )
-        x = x[x.size - n:]
-    if x.size < MIN_SAMPLES:
-        raise InputError(
-            f"column {column!r} in {path!r} has {x.size} samples"
-            f"{' in the window' if window is not None else ''}; at least {MIN_SAMPLES} are needed"
-        )
-    orders = DEFAULT_ORDERS if orders is None else orders
-    amps = order_amplitudes(x, fs, rpm_to_rad_s(rpm), orders)
-    return {
-        "orders": [float(k) for k in np.atleast_1d(np.asarray(orders, dtype=float))],
-        "amplitude_nm": jsonable(np.asarray(amps, dtype=float)),
-        "column": column,
-        "sample_rate_hz": float(fs),
-        "samples": int(x.size),
-    }
-
-
-def cmd_orders(args) -> int:
-    """Print the order amplitudes of one time series in a file."""
-    from dampersim.sweeps.grid import parse_values
-
-    orders = parse_values(args.orders, option="--orders", unit="orders") if args.orders else None
-    out = order_amplitudes_of_file(args.file, args.rpm, column=args.column, fs=args.fs,
-                                   orders=orders, window=args.window)
-    if args.json:
-        print(json.dumps(out))
-    else:
-        print(f"{args.file}: column {out['column']}, {out['samples']} samples at "
-              f"{out['sample_rate_hz']:g} Hz, {args.rpm:g} rpm")
-        print(f"{'order':>6} {'amplitude [N m]':>16}")
-        for k, a in zip(out["orders"], out["amplitude_nm"]):
-            print(f"{k:>6g} {a:16.4f}")
-    return 0
-
-
 # --------------------------------------------------------------------------- parsers
 def _grid_options(p, speeds, torque, orders, out) -> None:
     """Options shared by ``sweep`` and ``map`` (grid, parameters, execution, output)."""
@@ -472,8 +305,7 @@ def _grid_options(p, speeds, torque, orders, out) -> None:
     p.add_argument("--torque", default=torque, metavar="NM",
                    help=f"mean torque(s) [N m]: a value, a list or START:STOP:STEP (default {torque})")
     p.add_argument("--orders", default=orders, help=f'ORDER:AMPLITUDE_NM[@PHASE_DEG],... (default "{orders}")')
-    p.add_argument("--params", metavar="FILE.toml", help="parameter set (default: built-in damper)")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter by dotted name")
+    add_parameter_options(p)
     p.add_argument("--executor", choices=EXECUTORS, default=None,
                    help="where to compute (default: dask if a scheduler is given, else processes)")
     p.add_argument("--workers", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
@@ -482,14 +314,14 @@ def _grid_options(p, speeds, torque, orders, out) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per point [s]")
     p.add_argument("--window", type=float, default=None, metavar="S",
                    help="analysis window at the end of each record [s] (default 1.25, §3.4)")
-    p.add_argument("--out", default=out, metavar="DIR", help=f"output folder (default {out})")
+    p.add_argument("--out", default=out, metavar="DIR", help=f"output folder, created if missing (default {out})")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the result cache")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
 
 
 def add_parsers(subparsers) -> None:
-    """Register the ``sweep``, ``map`` and ``orders`` commands on an argparse subparsers object."""
+    """Register the ``sweep`` and ``map`` commands on an argparse subparsers object."""
 
     s = subparsers.add_parser(
         "sweep",
@@ -519,24 +351,5 @@ def add_parsers(subparsers) -> None:
     m.add_argument("--torque-step", type=float, default=10.0, metavar="NM", help="map grid step [N m]")
     m.set_defaults(func=cmd_map)
 
-    o = subparsers.add_parser(
-        "orders",
-        help="engine-order amplitudes of one time series in a CSV or Parquet file",
-        description=(
-            "Read one torque column and a time column (time_s, time or t; or give --fs) and "
-            "print the amplitude of each engine order (Hann spectrum, §3.4)."
-        ),
-    )
-    o.add_argument("file", metavar="FILE", help=".csv or .parquet file")
-    o.add_argument("--rpm", type=float, required=True, metavar="RPM", help="mean shaft speed [rpm]")
-    o.add_argument("--column", default=None, metavar="NAME",
-                   help=f"signal column (default {DEFAULT_SIGNAL_COLUMN} if present, else the first numeric one)")
-    o.add_argument("--fs", type=float, default=None, metavar="HZ", help="sample rate [Hz] (instead of a time column)")
-    o.add_argument("--orders", default=None, metavar="LIST", help='orders, e.g. "1,2,4" or "0.5:8:0.5" (default 1-8)')
-    o.add_argument("--window", type=float, default=None, metavar="S",
-                   help="analyse the last S seconds only [s] (default: whole record)")
-    o.add_argument("--json", action="store_true", help="machine-readable output")
-    o.set_defaults(func=cmd_orders)
 
-
-__all__ = ["add_parsers", "cmd_sweep", "cmd_map", "cmd_orders", "order_amplitudes_of_file", "ProgressBar"]
+__all__ = ["add_parsers", "cmd_sweep", "cmd_map", "ProgressBar"]

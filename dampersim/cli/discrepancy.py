@@ -1,17 +1,23 @@
-"""CLI: ``effects``, ``synth`` and ``diagnose`` (the discrepancy workflow)."""
+"""Commands ``effects``, ``synth`` and ``diagnose``: the discrepancy workflow from synthetic campaign to named missing effect.
+
+Register the commands with :func:`add_parsers`; each command function takes the parsed
+``args`` and returns the exit status 0, bad input raises a
+:class:`~dampersim.errors.DampersimError`.
+"""
 
 from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 
+from dampersim.cli.options import add_parameter_options, parameters_from_args, prepare_output
 from dampersim.errors import InputError
 from dampersim.jsonsafe import jsonable
 
 
 def cmd_effects(args) -> int:
+    """List the candidate effects with their parameters and signatures."""
     from dampersim.discrepancy.effects import catalogue
 
     cat = catalogue()
@@ -30,18 +36,19 @@ def cmd_effects(args) -> int:
 
 
 def cmd_synth(args) -> int:
+    """Write a synthetic measured campaign (and optionally its truth)."""
     from dampersim.discrepancy.effects import parse_effect_spec
     from dampersim.discrepancy.synth import synthesize
-    from dampersim.parameters import load_parameters
 
     effects = [parse_effect_spec(e) for e in args.effect or ()]
     if not (0.0 <= args.perturb < 1.0):
         raise InputError(f"--perturb {args.perturb!r}: accepted is a fraction in [0, 1)")
     if not math.isfinite(args.noise_db) or not -80 <= args.noise_db <= 40:
         raise InputError(f"--noise-db {args.noise_db!r}: accepted is -80 to 40 dB re 1 N m")
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        raise InputError(f"--out {args.out}: accepted is a folder (it exists as a file)")
-    base = load_parameters(args.params) if args.params else None
+    base = parameters_from_args(args)
+    prepare_output(args.out, "folder")
+    if args.truth:
+        prepare_output(args.truth, "file", option="--truth")
     doc = synthesize(args.out, campaign=args.campaign, effects=effects, perturb=args.perturb, noise_db=args.noise_db,
                      seed=args.seed, truth=args.truth, base=base, workers=args.workers, record=args.record,
                      points=[x.strip() for x in args.points.split(",") if x.strip()] if args.points else None)
@@ -50,14 +57,19 @@ def cmd_synth(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
+    """Diagnose a campaign; print the verdict, optionally write the augmented set and a report."""
     from dampersim.discrepancy.campaign import read_campaign
     from dampersim.discrepancy.diagnose import diagnose
-    from dampersim.parameters import load_parameters, save_toml
+    from dampersim.parameters import save_toml
 
     camp = read_campaign(args.campaign)
     if camp.problems:
         print(camp.report_text(), file=sys.stderr)
-    system = load_parameters(args.params) if args.params else None
+    system = parameters_from_args(args)
+    if args.out_params:
+        prepare_output(args.out_params, "file", option="--out-params")
+    if args.report:
+        prepare_output(args.report, "file", option="--report")
 
     def progress(frac, text):
         if not args.json:
@@ -89,28 +101,29 @@ def cmd_diagnose(args) -> int:
     return 0
 
 
-def add_parsers(sub) -> None:
-    p = sub.add_parser("effects", help="list the candidate effects of the discrepancy workflow")
+def add_parsers(subparsers) -> None:
+    """Register ``effects``, ``synth`` and ``diagnose`` on an argparse subparsers object."""
+    p = subparsers.add_parser("effects", help="list the candidate effects of the discrepancy workflow")
     p.add_argument("--json", action="store_true", help="machine-readable list")
     p.set_defaults(func=cmd_effects)
 
-    p = sub.add_parser("synth", help="write a synthetic measured campaign (truth optionally hiding effects)")
-    p.add_argument("--out", required=True, help="campaign folder to write")
+    p = subparsers.add_parser("synth", help="write a synthetic measured campaign (truth optionally hiding effects)")
+    p.add_argument("--out", required=True, help="campaign folder to write (created if missing)")
     p.add_argument("--campaign", default="all", choices=("torque-curve", "mapping", "hysteresis", "all"))
     p.add_argument("--effect", action="append", metavar="NAME[:param=value,...]", help="hidden effect (repeatable)")
     p.add_argument("--perturb", type=float, default=0.1, help="relative perturbation of the estimated parameters")
     p.add_argument("--noise-db", type=float, default=0.0, help="sensor noise RMS in dB re 1 N m")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--truth", help="file for the truth (outside the campaign folder)")
-    p.add_argument("--params", help="base parameter set (TOML); default set if omitted")
+    add_parameter_options(p, overrides=False, params_help="base parameter set (TOML); default set if omitted")
     p.add_argument("--record", type=float, default=1.25, help="record length of torsional points [s]")
     p.add_argument("--workers", type=int, default=1, help="processes")
     p.add_argument("--points", help="comma-separated test-point ids to keep (e.g. tc_1200,map_900_50); default all")
     p.set_defaults(func=cmd_synth)
 
-    p = sub.add_parser("diagnose", help="find, name and add the effect the model is missing")
+    p = subparsers.add_parser("diagnose", help="find, name and add the effect the model is missing")
     p.add_argument("campaign", help="campaign folder (manifest.csv + time series)")
-    p.add_argument("--params", help="parameter set to diagnose (TOML); default set if omitted")
+    add_parameter_options(p, overrides=False, params_help="parameter set to diagnose (TOML); default set if omitted")
     p.add_argument("--json", action="store_true")
     p.add_argument("--report", help="write an HTML report")
     p.add_argument("--out-params", help="write the augmented parameter set (TOML)")
