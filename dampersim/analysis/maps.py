@@ -226,7 +226,7 @@ __all__ = [
 
 
 def zone_summary(table, knee_nm: float, orders=None, spike_hz: float = 20.0, low_hz: float = 30.0, mid_hz: float = 80.0) -> dict:
-    """MR statistics in the zones the thesis describes ([thesis] §7.2, model-spec §10),
+    """MR statistics in the zones the thesis describes ([thesis] §7.2, docs/model.md §10),
     from the test points themselves (no interpolation).
 
     Zones: ``spike`` f < spike_hz; ``low`` f < low_hz; ``below_knee_high`` mean torque <

@@ -2,7 +2,7 @@
 
 The linear model (:func:`dampersim.solver.linear.linearise`) is the frictionless mass and
 stiffness description of the damper and the rig output chain about the positive-torque
-contact state (model-spec §9, [thesis] Eq. 11). Its undamped modes explain the resonance
+contact state (docs/model.md §9, [thesis] Eq. 11). Its undamped modes explain the resonance
 bands seen in the colourmaps ([thesis] §6.3.1, §7.2: ~5-10 Hz and 170-210 Hz). An engine
 order k excites a mode of frequency f_n when k * rpm / 60 = f_n; the Campbell diagram draws
 the order lines f = k * rpm / 60 over speed against the natural frequencies and marks

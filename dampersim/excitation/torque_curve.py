@@ -3,7 +3,7 @@
 In the thesis's torque-curve campaigns the rig's mean input torque at each speed point
 followed the wide-open-throttle curve of the engine that is normally paired with this
 damper ([thesis] §3.3.2): speed points from 1200 rpm (lowest speed with curve data) to
-2800 rpm (rig limit), mean torques between about 240 and 415 N m (model-spec §7). The same
+2800 rpm (rig limit), mean torques between about 240 and 415 N m (docs/model.md §7). The same
 curve is drawn over the magnification maps to show the damper's usual operating region
 ([thesis] §6.3.1, §7.1.3).
 

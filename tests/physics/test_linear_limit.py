@@ -20,7 +20,7 @@ def test_exported_model_shape_and_modes():
     assert np.array(d["K"]).shape == (n, n) and d["input_dof"] == 0
     assert d["output_shaft"]["dofs"] == ["flange_group_1", "transducer"]
     f = LINEAR.natural_frequencies_hz()
-    # model-spec §10: damper mode below 20 Hz, a resonance between 150 and 250 Hz
+    # docs/model.md §10: damper mode below 20 Hz, a resonance between 150 and 250 Hz
     assert 0 < f[0] < 20
     assert np.any((f > 150) & (f < 250))
     free = linearise(SYSTEM, motor="free")

@@ -202,7 +202,7 @@ def real_loop():
 def test_real_loop_stays_within_hardstops_and_dissipates(real_loop):
     system = real_loop.result.parameters
     assert real_loop.result.sample_rate == pytest.approx(1000.0)  # run_loops' 1 kHz default
-    tol = deg_to_rad(0.1)  # model-spec §6: a limit is never exceeded by more than 0.1 deg
+    tol = deg_to_rad(0.1)  # docs/model.md §6: a limit is never exceeded by more than 0.1 deg
     for which, s in (("outer", system.outer), ("inner", system.inner)):
         w = real_loop.windup(which)
         assert w.max() <= s.hardstop_positive + tol and w.min() >= s.hardstop_negative - tol
