@@ -19,6 +19,9 @@ Values and their origin (SI units inside, like every parameter set of dampersim)
   a few N m at 2000 rpm (no valve train or pumping losses, [thesis] §4.2). Table 9.1's
   stiffness ranges for cylinders 3 and 4 are printed as "60000-700000" and
   "100000-1100000"; we read them as 6.0-7.0e5 and 1.0-1.1e6 N m/rad.
+
+The origin of every single value is in :data:`ORIGINS` (generator) and
+:data:`FIRED_ORIGINS` (fired engine), by dotted name.
 """
 
 from __future__ import annotations
@@ -130,7 +133,7 @@ def _default_chain():
 
 @dataclass(frozen=True)
 class PulsationGenerator:
-    """The motored-engine pulsation generator ([thesis] chapter 4, model-spec §8)."""
+    """The motored-engine pulsation generator ([thesis] chapter 4, docs/model.md §8)."""
 
     name: str = field(default="pulsation_generator_2017", metadata={"doc": "short identifier"})
     geometry: EngineGeometry = field(default_factory=EngineGeometry, metadata={"doc": "crank-slider geometry"})
@@ -201,6 +204,104 @@ class FiredEngine:
     rotating_inertia: float = param("kg m^2", "crankshaft, flywheel-side rotating inertia (rigid crank)", 0.01, 2.0, default=0.05)
 
 
+_TABLE_91_BK = "[thesis] Table 9.1: middle of the 50-150 N m s/rad stiffness damping range of the crank sections"
+_TABLE_91_BJ = "[thesis] Table 9.1: middle of the 0.001-0.003 N m s/rad inertia damping range"
+_CRANK_J = ("estimate: throw, counterweights and the rotating share of the con-rod of one section; the thesis took "
+            "the section inertias from manufacturer data it does not print ([thesis] §4.2)")
+_RIG_BJ = "[thesis] Table 9.2: middle of the 0.005-0.015 N m s/rad inertia damping range"
+_RIG_BK = "[thesis] Table 9.2: middle of the 50-100 N m s/rad stiffness damping range"
+_FRICTION = ("so that the motored friction torque is a few N m at 2000 rpm; the generator keeps only ring-pack "
+             "and bearing friction, with no valve train or pumping losses ([thesis] §4.2)")
+
+_SHARED_ORIGINS = {
+    "geometry.cylinders": "[thesis] §4.1.1: four-cylinder diesel",
+    "geometry.bore": "estimate: 86 mm, a typical bore of a 2.2 l common-rail four-cylinder diesel",
+    "geometry.stroke": "estimate: 94.6 mm, with the 86 mm bore 2198 cm^3 in all",
+    "geometry.rod_length": "estimate: 160 mm, about 3.4 crank radii as usual for such engines",
+    "geometry.compression_ratio": "[thesis] §4.1.1: 16",
+    "geometry.gamma": "[thesis] §4.2: 1.4, air as an ideal gas compressed polytropically",
+    "geometry.reciprocating_mass": "estimate: piston, pin, rings and the small-end share of the con-rod, 0.9 kg "
+    "per cylinder",
+    "friction.ring_viscous": f"estimate: hydrodynamic shear of ring pack and skirt, {_FRICTION}",
+    "friction.ring_boundary": f"estimate: boundary friction coefficient of the rings, {_FRICTION}",
+    "friction.ring_tension": f"estimate: ring tangential load, {_FRICTION}",
+    "friction.ring_height": "estimate: 1.5 mm, the gas-loaded back face of a typical top ring",
+    "friction.ring_speed_ref": "estimate: 0.05 m/s smooths the boundary term's sign change at the dead "
+    "centres without changing the torque elsewhere",
+    "friction.bearing_viscous": f"estimate: hydrodynamic (Petroff) bearing torque per section, {_FRICTION}",
+    "friction.atmosphere": "estimate: 1 bar, the crankcase vents to the atmosphere",
+}
+
+#: origin of every leaf parameter of the default pulsation generator, by dotted name
+#: (same kinds as the damper set's ORIGINS: ``[thesis] ...``, ``estimate:``, ``model:``;
+#: identifiers have none)
+ORIGINS = {
+    **_SHARED_ORIGINS,
+    "chain.input_dyno.inertia": "[thesis] Table 9.2: inside the 1.00-1.15 kg m^2 of the output motor; the "
+    "input dynamometer is taken to be alike",
+    "chain.input_dyno.inertia_damping": _RIG_BJ,
+    "chain.input_dyno.shaft_stiffness": "model: unused, the input dyno is the first element of the chain "
+    "(docs/model.md §8)",
+    "chain.input_dyno.shaft_damping": "model: unused, as its shaft stiffness (docs/model.md §8)",
+    "chain.roba.inertia": "[thesis] Table 9.2: middle of the ROBA coupling's 0.057-0.058 kg m^2",
+    "chain.roba.inertia_damping": _RIG_BJ,
+    "chain.roba.shaft_stiffness": "[thesis] Table 9.2: middle of the ROBA coupling's 1.72e6-1.75e6 N m/rad",
+    "chain.roba.shaft_damping": _RIG_BK,
+    "chain.crank1.inertia": _CRANK_J,
+    "chain.crank1.inertia_damping": _TABLE_91_BJ,
+    "chain.crank1.shaft_stiffness": "estimate: the snub nose between coupling and first throw is stepped down "
+    "to a much smaller diameter ([thesis] §4.1.2); a 25 mm x 60 mm steel shaft gives G J_p / L = 5e4 N m/rad",
+    "chain.crank1.shaft_damping": _TABLE_91_BK,
+    "chain.crank2.inertia": _CRANK_J,
+    "chain.crank2.inertia_damping": _TABLE_91_BJ,
+    "chain.crank2.shaft_stiffness": "[thesis] Table 9.1: middle of cylinder 1's 5.80e5-5.95e5 N m/rad",
+    "chain.crank2.shaft_damping": _TABLE_91_BK,
+    "chain.crank3.inertia": _CRANK_J,
+    "chain.crank3.inertia_damping": _TABLE_91_BJ,
+    "chain.crank3.shaft_stiffness": "[thesis] Table 9.1: middle of cylinder 2's 5.80e5-5.95e5 N m/rad",
+    "chain.crank3.shaft_damping": _TABLE_91_BK,
+    "chain.crank4.inertia": _CRANK_J,
+    "chain.crank4.inertia_damping": _TABLE_91_BJ,
+    "chain.crank4.shaft_stiffness": "[thesis] Table 9.1: cylinder 3, printed 60000-700000 N m/rad and read as "
+    "6.0e5-7.0e5 (a digit lost, like its neighbours' ranges); the middle",
+    "chain.crank4.shaft_damping": _TABLE_91_BK,
+    "chain.flange.inertia": "[thesis] Table 9.2: middle of flange group 1's 0.025-0.035 kg m^2",
+    "chain.flange.inertia_damping": _RIG_BJ,
+    "chain.flange.shaft_stiffness": "[thesis] Table 9.1: cylinder 4 (the crank end to the flange), printed "
+    "100000-1100000 N m/rad and read as 1.0e6-1.1e6; the middle",
+    "chain.flange.shaft_damping": _RIG_BK,
+    "chain.transducer.inertia": "[thesis] Table 9.2: middle of the T40B's 0.014-0.015 kg m^2",
+    "chain.transducer.inertia_damping": _RIG_BJ,
+    "chain.transducer.shaft_stiffness": "[thesis] Table 9.2: middle of the printed T40B range "
+    "250000-2550000 N m/rad",
+    "chain.transducer.shaft_damping": _RIG_BK,
+    "charge_pressure": "[thesis] §4.1.1: 1-3 bar; 2.5 bar, the charge of the thesis's main torque-curve "
+    "campaign ([thesis] §6.2.1)",
+    "stiff_shaft_stiffness": "estimate: a torsionally stiff propshaft for the generator-only tests "
+    "([thesis] §4.3.1), its mode far above the orders studied",
+    "stiff_shaft_damping": "estimate: like a crank section, inside the 50-150 N m s/rad of [thesis] Table 9.1",
+    "link_stiffness": "[thesis] Table 9.2: the T40B transducer shaft into the damper, middle of the printed "
+    "range",
+    "link_damping": _RIG_BK,
+    "mean_torque_gain": "estimate: a slow integral trim of the mean on the measured output torque, as the rig "
+    "controlled it ([thesis] §4.3.1), far below the frequencies of the 2nd order",
+    "dyno_damping": "estimate: active damping of the dyno's torque loop on its speed deviation, within the "
+    "15 Hz bandwidth of the rig's dynamometers ([thesis] §3.1.1)",
+}
+
+#: origin of every leaf parameter of the default fired engine, by dotted name
+FIRED_ORIGINS = {
+    **_SHARED_ORIGINS,
+    "intake_pressure": "estimate: 2.0 bar boost at inlet valve closure, a turbocharged diesel at full load",
+    "combustion_start": "estimate: combustion starts 5 deg before top dead centre",
+    "combustion_duration": "estimate: 60 deg of crank angle from start to end of the burn",
+    "wiebe_a": "estimate: 5, a usual Wiebe efficiency parameter (about 99 % burnt at the end)",
+    "wiebe_m": "estimate: 1.5, a usual Wiebe shape exponent for diesel combustion",
+    "rotating_inertia": "estimate: crankshaft and the flywheel-side rotating parts of a 2.2 l engine, "
+    "0.05 kg m^2",
+}
+
+
 __all__ = [
     "BAR",
     "PRESSURE_LIMITS_BAR",
@@ -213,4 +314,6 @@ __all__ = [
     "validate_engine",
     "default_pulsation_generator",
     "check_pressure_bar",
+    "ORIGINS",
+    "FIRED_ORIGINS",
 ]

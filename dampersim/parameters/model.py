@@ -5,7 +5,7 @@ metadata; :mod:`dampersim.parameters.validation` checks values against it and
 :mod:`dampersim.parameters.io` uses it for TOML load/save and ``--set`` paths.
 All values are SI: kg, m, rad, N m/rad, N m s/rad, kg m^2, s.
 
-Structure ([thesis] §5.1, Fig. 5.3; model-spec §2)::
+Structure ([thesis] §5.1, Fig. 5.3; docs/model.md §2)::
 
     T_in -> J_pri -[outer set]-> J_sec -[inner set of nested pairs]-> J_ter -> rig chain -> output motor
 """
@@ -106,7 +106,7 @@ class Friction:
 @dataclass(frozen=True)
 class Hardstops:
     """Hardstop contact ([thesis] §5.5.2). We use a stiff, damped, one-sided contact
-    instead of the thesis's inertia merge (Eq. 30-33); see model-spec §6."""
+    instead of the thesis's inertia merge (Eq. 30-33); see docs/model.md §6."""
 
     enabled: bool = param("-", "hardstops active (false: windup unlimited)", default=True, kind=bool)
     stiffness: float = param("N m/rad", "contact stiffness of a hardstop", 1.0e3, 1.0e9, default=2.0e6)

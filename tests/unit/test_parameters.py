@@ -1,6 +1,8 @@
-"""Parameter sets: TOML round trip, dotted overrides, validation messages, default targets."""
+"""Parameter sets: TOML round trip, dotted overrides, validation messages, default targets,
+and the origin of every default value."""
 
 import math
+import re
 
 import pytest
 
@@ -91,7 +93,7 @@ def test_validate_returns_valid_set():
 
 
 def test_default_set_qualitative_targets():
-    """model-spec §10: positive knee near 300 N m, inner knee above the 500 N m test range,
+    """docs/model.md §10: positive knee near 300 N m, inner knee above the 500 N m test range,
     negative knees much smaller in magnitude."""
     p = default_parameters()
     k_o = p.outer.count * p.outer.spring.stiffness
@@ -102,3 +104,70 @@ def test_default_set_qualitative_targets():
     assert abs(k_o * p.outer.hardstop_negative) < 0.5 * knee
     assert to_dict(p)["outer"]["count"] == 3 and to_dict(p)["inner"]["count"] == 5
     assert math.isclose(sum((p.friction.alpha_sec, p.friction.alpha_ter)), 1.0)
+
+
+# --------------------------------------------------------------------------- origins
+# Every value of a default set says where it comes from (ORIGINS, by dotted name):
+# "[thesis] §5.4: ...", "[thesis] Table 9.2: ...", "estimate: <reasoning>" or
+# "model: <choice>, docs/model.md §N". The thesis has chapters 1-8 and an appendix
+# (Tables 9.1 and 9.2); docs/model.md sections are checked by test_citations.py.
+THESIS_REF = r"\[thesis\] (§[1-8](\.\d+){0,2}|Eq\. \d+|Table 9\.[12]|Fig\. [1-8]\.\d+|chapter [1-8])\b"
+ORIGIN_FORM = re.compile(rf"({THESIS_REF}|estimate: \S.{{19,}}|model: .*docs/model\.md §\d+)")
+SECTION_MARK = re.compile(r"(\[thesis\] |docs/model\.md )?§(\S*)")
+
+
+def _origin_tables():
+    from dampersim.parameters import engine
+    from dampersim.parameters.sets import turbine_damper_2017
+
+    tables = [
+        ("turbine-damper-2017", default_parameters(), turbine_damper_2017.ORIGINS),
+        ("pulsation-generator", engine.default_pulsation_generator(), engine.ORIGINS),
+        ("fired-engine", engine.FiredEngine(), engine.FIRED_ORIGINS),
+    ]
+    return [pytest.param(*t, id=t[0]) for t in tables]
+
+
+def value_names(params) -> list:
+    """Dotted names of every value; identifiers (name, source) have no origin."""
+    return [n for n in dotted_names(params) if n.rsplit(".", 1)[-1] not in ("name", "source")]
+
+
+@pytest.mark.parametrize("label, params, origins", _origin_tables())
+def test_every_default_value_has_its_origin(label, params, origins):
+    names = value_names(params)
+    assert len(names) > 15  # the enumeration sees the whole set
+    missing = [n for n in names if n not in origins]
+    assert not missing, f"{label}: no origin for {missing}"
+    stale = [k for k in origins if k not in names]
+    assert not stale, f"{label}: origins of parameters that do not exist: {stale}"
+
+
+@pytest.mark.parametrize("label, params, origins", _origin_tables())
+def test_origins_cite_sections_that_look_like_sections(label, params, origins):
+    bad = {}
+    for name, text in origins.items():
+        if not ORIGIN_FORM.match(text):
+            bad[name] = "starts with neither '[thesis] <reference>', 'estimate: <reasoning>' nor 'model: ... docs/model.md §N'"
+            continue
+        for m in SECTION_MARK.finditer(text):
+            source, number = m.group(1), m.group(2).rstrip(",;:.)")
+            if source is None:
+                bad[name] = f"§{number} without '[thesis] ' or 'docs/model.md ' before it"
+            elif source == "[thesis] " and not re.fullmatch(r"[1-8](\.\d+){0,2}", number):
+                bad[name] = f"[thesis] §{number} is not a thesis section (chapters 1-8, e.g. §5.3.1)"
+            elif source == "docs/model.md " and not re.fullmatch(r"\d+", number):
+                bad[name] = f"docs/model.md §{number} is not a section number"
+    assert not bad, f"{label}: {bad}"
+
+
+def test_origin_checks_reject_what_they_should():
+    for text in ("thesis §5.1: 3 springs", "estimate", "estimate: short", "model: our choice",
+                 "[thesis] section 5", "[thesis] §A.1: x"):
+        ok = ORIGIN_FORM.match(text) and all(
+            m.group(1) and re.fullmatch(r"[1-8](\.\d+){0,2}|\d+", m.group(2).rstrip(",;:.)"))
+            for m in SECTION_MARK.finditer(text)
+        )
+        assert not ok, text
+    assert ORIGIN_FORM.match("[thesis] §6.2.2: 18 outer segments")
+    assert ORIGIN_FORM.match("model: stiff contact (docs/model.md §6)")

@@ -2,16 +2,21 @@
 
 The thesis ([thesis] §5.1, §6.1, Appendix Table 9.2) publishes the damper's structure,
 the friction law and the rig's value ranges, but no OEM spring or inertia values. Every
-value below therefore carries its origin:
+leaf parameter of the set (every dotted name, effects included) therefore has an entry
+in :data:`ORIGINS`, which starts with its kind:
 
-- ``thesis``: stated in the thesis text;
-- ``table 9.2``: inside the appendix range for the rig;
-- ``estimate``: chosen by us, with the reasoning, so that the set reproduces the
-  qualitative behaviour the thesis reports (model-spec §10): positive knee near
+- ``[thesis] §N`` / ``[thesis] Table 9.2`` ...: stated in the thesis, or inside the
+  range its appendix gives for the rig;
+- ``estimate:``: chosen by us, with the reasoning, so that the set reproduces the
+  qualitative behaviour the thesis reports (docs/model.md §10): positive knee near
   300 N m, first elastic mode below 20 Hz, resonance bands near 5-10 Hz and
-  170-210 Hz, inner knee above the 500 N m test range, small negative knees.
+  170-210 Hz, inner knee above the 500 N m test range, small negative knees;
+- ``model:``: a modelling or numerical choice of ours, explained in docs/model.md.
 
-Key derived figures (checked by ``tests/physics/test_default_set.py``):
+The thesis is entry ``thesis2017`` of docs/references.bib. Identifiers (``name``,
+``source``, the rig elements' names) are not values and have no origin.
+
+Key derived figures (checked by ``tests/unit/test_parameters.py``):
 outer set rate 3 x 127 = 381 N m/rad, knee 381 x 45 deg = 299 N m;
 inner set rate 5 x 480 = 2400 N m/rad, knee 2400 x 15 deg = 628 N m.
 """
@@ -35,42 +40,186 @@ from dampersim.parameters.model import (
 NAME = "turbine-damper-2017"
 DEG = math.pi / 180.0
 
+_MID_92 = "[thesis] Table 9.2: middle of the range given for"
+_BJ = "[thesis] Table 9.2: middle of the 0.005-0.015 N m s/rad inertia damping range of the rig components"
+_BK = "[thesis] Table 9.2: middle of the 50-100 N m s/rad stiffness damping range"
+
+#: origin of every leaf parameter of the set, by dotted name (see the module docs)
 ORIGINS = {
+    # --- damper bodies
     "inertias.primary": "estimate: lumped housing, pump, clutch and drive ring of a ~300 mm converter; "
     "sets the first elastic mode (J_pri against the rig through both sets in series) to ~7 Hz, "
     "inside the 5-10 Hz resonance band of [thesis] §7.2",
-    "inertias.secondary": "estimate: turbine plus damper housing and retaining plate",
+    "inertias.secondary": "estimate: turbine plus damper housing and retaining plate ([thesis] §5.1 groups them), "
+    "lighter than the primary group",
     "inertias.tertiary": "estimate: small output hub; with the gearbox stiffness it places the hub mode "
     "near 190 Hz, the 170-210 Hz band of [thesis] §7.2",
-    "outer.count": "thesis §5.1: 3 long outer arc springs",
+    # --- outer set: 3 long arc springs between J_pri and J_sec
+    "outer.count": "[thesis] §5.1: 3 long outer arc springs",
     "outer.spring.stiffness": "estimate: 299 N m knee / (3 springs x 45 deg) so the positive knee sits near "
     "300 N m ([thesis] §6.2.1, Fig. 6.7: knee between 1360 and 1380 rpm on the 2.5 bar torque curve)",
-    "outer.spring.mass": "estimate: 18 coils of 5 mm wire on a ~30 mm coil diameter (steel)",
-    "outer.spring.arc": "estimate: fills the 104 deg slot exactly: no clearance, no preload ([thesis] §5.2 footnote)",
-    "outer.spring.effective_radius": "estimate for a ~300 mm converter",
-    "outer.spring.friction_radius": "estimate: effective radius + half the coil diameter",
-    "outer.spring.active_coils": "estimate; one coil per segment at the thesis's 18 segments",
-    "outer.spring.wire_thickness": "estimate; block arc 47 deg stays beyond the hardstop travel ([thesis] §5.1)",
-    "outer.primary_stopper_half_width": "estimate",
-    "outer.secondary_stopper_half_width": "estimate (equal to the primary: no clearance, [thesis] §5.2)",
-    "outer.hardstop_positive": "estimate: ~65 deg total windup at the 500 N m ramp peak ([thesis] §3.3.1)",
-    "outer.hardstop_negative": "estimate: much smaller travel under negative torque ([thesis] §5.1, Fig. 5.5)",
-    "inner.count": "thesis §5.1: 5 nested pairs",
-    "inner.spring.stiffness": "estimate: half the pair rate; the thesis splits the set rate evenly ([thesis] §6.1)",
-    "inner.nested.stiffness": "estimate: half the pair rate ([thesis] §6.1)",
-    "inner.hardstop_positive": "estimate: puts the inner knee (628 N m) above the 500 N m test range ([thesis] §6.2.1)",
-    "inner.hardstop_negative": "estimate",
-    "friction": "thesis §5.4: Makkar coefficients gamma1=gamma4=0.2, gamma2=gamma5=100, gamma3=10, gamma6=0.01",
-    "friction.outer.alpha": "thesis §6.1: 30 % of the coil surface marked by dye",
-    "friction.pair_outer.alpha": "thesis §6.1: 0.15",
-    "friction.pair_inner.alpha": "thesis §6.1: area ratio 0.55",
-    "friction.alpha_sec": "thesis §6.1: even split between J_sec and J_ter",
-    "rig": "table 9.2 mid-range values, except the gearbox shaft damping (see below)",
-    "rig.elements.gearbox.shaft_damping": "estimate (outside the 50-100 range of table 9.2): an in-range value "
-    "over-damps the hub-on-gearbox mode and erases the 170-210 Hz band the thesis measured",
-    "rig.elements.output_motor.shaft_stiffness": "estimate: same as a flange group (table 9.2 gives none)",
-    "motor": "estimate: PI tuned for about 15 Hz bandwidth on the ~1.3 kg m^2 output side ([thesis] §3.1.1)",
-    "solver": "thesis §6.2.2: 18 outer / 8 inner segments; time step chosen for our integrator (see docs)",
+    "outer.spring.mass": "estimate: 18 coils of 5 mm steel wire on a ~30 mm coil diameter",
+    "outer.spring.arc": "estimate: fills the 104 deg slot exactly (120 deg pitch minus two 8 deg stopper halves): "
+    "no clearance and no preload at zero windup",
+    "outer.spring.effective_radius": "estimate: coil centre line of the outer set in a ~300 mm converter",
+    "outer.spring.friction_radius": "estimate: effective radius plus half the ~30 mm coil diameter (the coils rub "
+    "on the outer race)",
+    "outer.spring.active_coils": "estimate: one coil per segment at the thesis's 18 outer segments ([thesis] §6.2.2)",
+    "outer.spring.wire_thickness": "estimate: 5 mm; the block arc (18 x 5 mm / 0.110 m = 47 deg) stays beyond "
+    "the hardstop travel, as the hardstops are there to keep the springs off block ([thesis] §5.1)",
+    "outer.primary_stopper_half_width": "estimate: 8 deg, leaving a 104 deg slot in the 120 deg pitch",
+    "outer.secondary_stopper_half_width": "estimate: equal to the primary stopper, so the spring has neither "
+    "clearance nor preload",
+    "outer.hardstop_positive": "estimate: 45 deg puts the positive knee at 381 N m/rad x 45 deg = 299 N m, "
+    "near the 300 N m the thesis located ([thesis] §6.2.1)",
+    "outer.hardstop_negative": "estimate: -10 deg, much less travel under negative torque than positive "
+    "([thesis] §5.1, Fig. 5.5)",
+    # --- inner set: 5 nested pairs between J_sec and J_ter
+    "inner.count": "[thesis] §5.1: 5 nested pairs",
+    "inner.spring.stiffness": "estimate: half the pair rate; the thesis splits the set rate evenly between the "
+    "two springs of a pair ([thesis] §6.1)",
+    "inner.spring.mass": "estimate: about 9 coils of 4 mm steel wire on a ~24 mm coil diameter",
+    "inner.spring.arc": "estimate: fills the 60 deg slot (72 deg pitch minus two 6 deg stopper halves); all pairs "
+    "of the simulated damper are full length ([thesis] §5.1)",
+    "inner.spring.effective_radius": "estimate: the inner set runs on a smaller radius than the outer set "
+    "(0.110 m) of a ~300 mm converter",
+    "inner.spring.friction_radius": "estimate: effective radius plus about half the ~24 mm coil diameter",
+    "inner.spring.active_coils": "estimate: about one coil per segment at the 8 inner segments; the thesis "
+    "found accuracy falls once a segment holds less than one coil ([thesis] §6.2.2)",
+    "inner.spring.wire_thickness": "estimate: 4 mm; block arc 9 x 4 mm / 0.075 m = 27.5 deg, well below the "
+    "45 deg left at the inner hardstop",
+    "inner.nested.stiffness": "estimate: the other half of the pair rate ([thesis] §6.1)",
+    "inner.nested.mass": "estimate: about 11 coils of 3 mm steel wire on a ~15 mm coil diameter, inside the "
+    "outer spring of the pair",
+    "inner.nested.arc": "estimate: same length as its outer spring: the pairs compress together from zero "
+    "windup ([thesis] §5.1, larger damper)",
+    "inner.nested.effective_radius": "estimate: concentric with the outer spring of the pair",
+    "inner.nested.friction_radius": "estimate: effective radius plus half its ~14 mm coil diameter: it rubs on "
+    "the inside of the outer spring's coils ([thesis] §5.4)",
+    "inner.nested.active_coils": "estimate: more, finer coils than its outer partner",
+    "inner.nested.wire_thickness": "estimate: 3 mm; block arc 11 x 3 mm / 0.075 m = 25 deg, below the 45 deg "
+    "left at the inner hardstop",
+    "inner.primary_stopper_half_width": "estimate: 6 deg, leaving a 60 deg slot in the 72 deg pitch of 5 pairs",
+    "inner.secondary_stopper_half_width": "estimate: equal to the primary stopper (no clearance, no preload)",
+    "inner.hardstop_positive": "estimate: 15 deg puts the inner knee (628 N m) above the 500 N m test range "
+    "([thesis] §6.2.1)",
+    "inner.hardstop_negative": "estimate: -6 deg, small travel under negative torque like the outer set "
+    "([thesis] §5.1)",
+    # --- friction
+    "friction.enabled": "[thesis] §5.4: spring friction is part of the model",
+    "friction.gamma1": "[thesis] §5.4: 0.2, lubricated steel on steel (Stribeck level)",
+    "friction.gamma2": "[thesis] §5.4: 100, Makkar's example value",
+    "friction.gamma3": "[thesis] §5.4: 10, Makkar's example value",
+    "friction.gamma4": "[thesis] §5.4: 0.2, lubricated steel on steel (Coulomb level)",
+    "friction.gamma5": "[thesis] §5.4: 100, Makkar's example value",
+    "friction.gamma6": "[thesis] §5.4: 0.01, Makkar's example value",
+    "friction.outer.alpha": "[thesis] §6.1: 30 % of the coil surface marked by dye",
+    "friction.outer.preload": "estimate: none; [thesis] §6.1 lists a radial preload among the parameters to be "
+    "estimated but gives no value, and the springs fill their slots without pre-curvature",
+    "friction.pair_outer.alpha": "[thesis] §6.1: 0.15, by the same dye method",
+    "friction.pair_outer.preload": "estimate: none, as for the outer springs",
+    "friction.pair_inner.alpha": "[thesis] §6.1: 0.55, ratio of the contact areas of the two springs of a pair",
+    "friction.pair_inner.preload": "estimate: none, as for the outer springs",
+    "friction.alpha_sec": "[thesis] §6.1: 0.5, even split between J_sec and J_ter",
+    "friction.alpha_ter": "[thesis] §6.1: 0.5, the other half",
+    # --- hardstops
+    "hardstops.enabled": "[thesis] §5.5.2: both sets have hardstops",
+    "hardstops.stiffness": "model: stiff one-sided contact in place of the thesis's inertia merge; 2e6 N m/rad "
+    "keeps the windup within 0.03 deg of the limit at the tested loads (docs/model.md §6)",
+    "hardstops.damping": "model: about critical for J_pri against J_sec, so the contact does not rebound "
+    "(docs/model.md §6)",
+    # --- rig output chain
+    "rig.elements.gearbox.inertia": f"{_MID_92} the gearbox (0.100-0.130 kg m^2)",
+    "rig.elements.gearbox.inertia_damping": _BJ,
+    "rig.elements.gearbox.shaft_stiffness": "[thesis] Table 9.2: inside the gearbox range 9000-12500 N m/rad",
+    "rig.elements.gearbox.shaft_damping": "estimate: 5 N m s/rad, outside the 50-100 range of [thesis] Table 9.2: "
+    "an in-range value over-damps the hub-on-gearbox mode and erases the 170-210 Hz band the thesis measured",
+    "rig.elements.flange_group_1.inertia": f"{_MID_92} flange group 1 (0.025-0.035 kg m^2)",
+    "rig.elements.flange_group_1.inertia_damping": _BJ,
+    "rig.elements.flange_group_1.shaft_stiffness": f"{_MID_92} the flange groups (1.4e6-1.6e6 N m/rad)",
+    "rig.elements.flange_group_1.shaft_damping": _BK,
+    "rig.elements.transducer.inertia": f"{_MID_92} the T40B transducer (0.014-0.015 kg m^2)",
+    "rig.elements.transducer.inertia_damping": _BJ,
+    "rig.elements.transducer.shaft_stiffness": "[thesis] Table 9.2: inside the printed T40B range "
+    "250000-2550000 N m/rad, near its top (the lower bound reads like a misprint of 2.50e6)",
+    "rig.elements.transducer.shaft_damping": _BK,
+    "rig.elements.flange_group_2.inertia": f"{_MID_92} flange group 2 (0.015-0.025 kg m^2)",
+    "rig.elements.flange_group_2.inertia_damping": _BJ,
+    "rig.elements.flange_group_2.shaft_stiffness": f"{_MID_92} the flange groups (1.4e6-1.6e6 N m/rad)",
+    "rig.elements.flange_group_2.shaft_damping": _BK,
+    "rig.elements.roba_coupling.inertia": f"{_MID_92} the ROBA coupling (0.057-0.058 kg m^2)",
+    "rig.elements.roba_coupling.inertia_damping": _BJ,
+    "rig.elements.roba_coupling.shaft_stiffness": f"{_MID_92} the ROBA coupling (1.72e6-1.75e6 N m/rad)",
+    "rig.elements.roba_coupling.shaft_damping": _BK,
+    "rig.elements.output_motor.inertia": f"{_MID_92} the output motor (1.00-1.15 kg m^2)",
+    "rig.elements.output_motor.inertia_damping": _BJ,
+    "rig.elements.output_motor.shaft_stiffness": "estimate: same as a flange group ([thesis] Table 9.2 gives none "
+    "for the motor)",
+    "rig.elements.output_motor.shaft_damping": "estimate: same as a flange group, the middle of the 50-100 "
+    "N m s/rad range of [thesis] Table 9.2",
+    "rig.output_transducer": "[thesis] §6.2.1: the output torque is measured directly after the gearbox, "
+    "at the output transducer",
+    # --- output motor
+    "motor.mode": "model: PI speed control like the rig's output dynamometer, 'held' as the option "
+    "(docs/model.md §2)",
+    "motor.proportional_gain": "estimate: 120 N m s/rad on the ~1.3 kg m^2 output side gives about the 15 Hz "
+    "bandwidth of the rig's dynamometers ([thesis] §3.1.1)",
+    "motor.integral_gain": "estimate: integral action about four times slower than the proportional loop "
+    "(2800 / 120 = 23 rad/s), so the held speed has no steady error",
+    # --- numerical settings
+    "solver.time_step": "model: 1/60 000 s converges the excited orders within 1 % and divides the usual "
+    "output rates (docs/model.md §12); the thesis's Simulink model used 1e-6 s ([thesis] §5.6)",
+    "solver.outer_segments": "[thesis] §6.2.2: 18 outer segments, the best balance of accuracy and run time",
+    "solver.inner_segments": "[thesis] §6.2.2: 8 inner segments, the optimum for the nested springs",
+    "solver.duration": "[thesis] §6.2.1: 0.3 s mean ramp, 0.3 s amplitude ramp, then a 2 s sample: 2.6 s",
+    "solver.output_sample_rate": "[thesis] §3.4: 1e4 samples/s, the rig's logging rate for hysteresis loops; "
+    "it resolves the 8th order at 2800 rpm (373 Hz) many times over",
+    "solver.segment_sample_rate": "estimate: 1 kHz shows the segment motion up to 500 Hz (above the 6th order at "
+    "2800 rpm) while the segment record stays a tenth of the time series",
+    # --- optional effects (all off; docs/model.md §11 and dampersim.discrepancy.effects)
+    "effects.clutch_slip.enabled": "model: off, the thesis assumes a locked clutch without slip ([thesis] §5.1); "
+    "a candidate effect of the discrepancy workflow (docs/model.md §11)",
+    "effects.clutch_slip.capacity": "estimate: 500 N m, the input dynamometer's limit ([thesis] §3.1.1), so a "
+    "switched-on clutch slips only near the highest torques the rig can apply",
+    "effects.clutch_slip.slip_speed": "estimate: friction builds up over a slip far below the 1-3 rpm the thesis "
+    "allows for an over-locked clutch ([thesis] §5.1)",
+    "effects.clutch_slip.viscous": "estimate: oil-film drag of a wet clutch, small against the capacity at "
+    "slip speeds of a few rad/s",
+    "effects.clutch_slip.drive_inertia_fraction": "estimate: cover and pump are most of the lumped primary "
+    "inertia; piston plate and drive ring the rest ([thesis] §5.1)",
+    "effects.output_backlash.enabled": "model: off, the thesis models no free play (docs/model.md §11)",
+    "effects.output_backlash.free_play": "estimate: 0.03 rad (1.7 deg), a typical spline and gear clearance of "
+    "a transmission input",
+    "effects.inner_short_springs.enabled": "model: off, all nested pairs of the simulated damper are full "
+    "length ([thesis] §5.1; docs/model.md §11)",
+    "effects.inner_short_springs.count": "[thesis] §5.1: in the smaller damper 2 of the 5 pairs have a "
+    "shorter inner spring",
+    "effects.inner_short_springs.stiffness": "estimate: the rate of one inner-of-pair spring of this set "
+    "(240 N m/rad)",
+    "effects.inner_short_springs.clearance": "estimate: 0.1 rad (5.7 deg) of inner windup before the short "
+    "springs engage, inside the 15 deg travel",
+    "effects.turbine_drag.enabled": "model: off, the thesis neglects the oil flow with the clutch locked "
+    "([thesis] §5.1; docs/model.md §11)",
+    "effects.turbine_drag.coefficient": "estimate: a drag of a few N m at the damper's oscillation speeds "
+    "(a few rad/s), small against the outer springs",
+    "effects.pendulum_absorber.enabled": "model: off, the simulated damper has no absorber (docs/model.md §11)",
+    "effects.pendulum_absorber.order": "estimate: the firing order of a four-cylinder engine, 2, the dominant "
+    "order of its torque ([thesis] §3.4)",
+    "effects.pendulum_absorber.inertia": "estimate: a small absorber, under 2 % of J_sec",
+    "effects.pendulum_absorber.damping": "estimate: light damping of the pendulum swing, so the absorber stays "
+    "sharply tuned",
+    "effects.nested_radial_transfer.enabled": "model: off, the thesis gives each spring of a pair its own "
+    "normal force ([thesis] §5.3.2; docs/model.md §11)",
+    "effects.nested_radial_transfer.fraction": "estimate: all of the inner spring's normal force, since the "
+    "outer spring is its only support ([thesis] §5.4)",
+    "effects.spring_preload.enabled": "model: off, the springs fill their slots without preload "
+    "(docs/model.md §11)",
+    "effects.spring_preload.force": "estimate: 15 N per mass, about the centrifugal force on an outer-spring "
+    "mass at 1000 rpm",
+    "effects.transducer_bandwidth.enabled": "model: off, the output torque is recorded as the shaft "
+    "carries it (docs/model.md §11)",
+    "effects.transducer_bandwidth.cutoff": "estimate: 150 Hz, a slow amplifier or filter setting; the T40B "
+    "itself measures up to 3 kHz ([thesis] §3.1.3)",
 }
 
 
