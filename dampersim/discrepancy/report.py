@@ -1,0 +1,138 @@
+"""The diagnosis report: a Diagnosis as a JSON document and back, and what it says in words
+(verdict, ranking rows, effect parameters with their units)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from dampersim.discrepancy import diagnose as dg
+from dampersim.discrepancy.effects import NAMES, describe, parameters_of
+from dampersim.errors import InputError
+from dampersim.jsonsafe import jsonable
+
+
+def diagnosis_document(diag) -> dict:
+    """A Diagnosis -> JSON-ready document: :meth:`Diagnosis.to_json` plus the per-point
+    data the figures need (``points``: measured and simulated order amplitudes per stage;
+    ``residuals``: stage -> point id -> order errors [N m])."""
+    doc = dict(diag.to_json())
+    doc["points"] = diag.points
+    doc["residuals"] = diag.residuals
+    return jsonable(doc)
+
+
+_DOC_FLOATS = ("noise_floor_nm", "gap_before_nm", "gap_calibrated_nm", "gap_after_nm")
+
+
+def diagnosis_from_document(doc: dict) -> SimpleNamespace:
+    """A diagnosis document (or the ``diagnose --json`` output) -> an object with the
+    attributes the figure builders of :mod:`dampersim.plotting.discrepancy` read.
+    Missing numbers become NaN; a document without ``points``/``residuals`` (the CLI's)
+    gives empty ones."""
+    if not isinstance(doc, dict) or "verdict" not in doc:
+        raise InputError("a diagnosis document: accepted is the JSON of Diagnosis.to_json() (with a 'verdict')")
+    d = dict(doc)
+    for k in _DOC_FLOATS:
+        d[k] = float("nan") if d.get(k) is None else float(d[k])
+    d.setdefault("effect", None)
+    d.setdefault("effect_parameters", {})
+    d.setdefault("ranking", [])
+    d.setdefault("held_out_points", [])
+    d["points"] = list(d.get("points") or [])
+    d["residuals"] = {k: dict(v) for k, v in (d.get("residuals") or {}).items()}
+    d.setdefault("locate", {})
+    d.setdefault("problems", [])
+    return SimpleNamespace(**d)
+
+
+def has_point_data(doc: dict) -> bool:
+    """Whether a diagnosis document holds the per-point data of the residual figures."""
+    res = (doc or {}).get("residuals") or {}
+    return bool((doc or {}).get("points")) and all(s in res for s in ("before", "calibrated", "after"))
+
+
+def effect_parameter_text(name, values: dict) -> str:
+    """"capacity = 930 N m, drag = 0.4 N m s/rad" with the units of the effect registry."""
+    units = {p["name"]: p["unit"] for p in parameters_of(name)} if name in NAMES else {}
+    items = []
+    for k, v in (values or {}).items():
+        unit = units.get(k, "")
+        val = f"{v:.4g}" if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
+        items.append(f"{k} = {val}" + (f" {unit}" if unit and unit != "-" else ""))
+    return ", ".join(items)
+
+
+def ranking_rows(doc: dict) -> list:
+    """Ranking of a diagnosis document as table rows: effect, fitted parameters (with
+    units), held-out gap [N m], improvement over the calibrated model [%], complexity
+    penalty [N m] (score minus gap), score [N m], training fit and screen fit [N m], and
+    the starting point the effect was fitted from ("calibrated" or "estimated"
+    parameters; None in documents from before that choice existed)."""
+    rows = []
+    for i, r in enumerate(doc.get("ranking") or [], start=1):
+        gap, score = r.get("gap_held_out_nm"), r.get("score")
+        imp = r.get("improvement")
+        rows.append({
+            "rank": i,
+            "effect": r.get("effect"),
+            "parameters": effect_parameter_text(r.get("effect"), r.get("parameters") or {}) or "screened out",
+            "gap_held_out_nm": gap,
+            "improvement_pct": None if imp is None else 100.0 * imp,
+            "penalty_nm": None if gap is None or score is None else score - gap,
+            "score_nm": score,
+            "train_fit_nm": r.get("train_fit_nm"),
+            "screen_fit_nm": r.get("screen_fit_nm"),
+            "start": r.get("fitted_from"),
+            "named": r.get("effect") == doc.get("effect"),
+        })
+    return rows
+
+
+def verdict_summary(doc: dict) -> dict:
+    """What a diagnosis document concludes, in words: {"verdict", "level" (notice level),
+    "headline", "reason", "effect" (registry description or None), "parameters" (text with
+    units), "collapses_on"}. The thresholds are those of :mod:`dampersim.discrepancy.diagnose`."""
+    def nm(v):
+        return "—" if v is None else f"{float(v):.3g} N m"
+
+    verdict, effect = doc.get("verdict"), doc.get("effect")
+    floor, cal, after = doc.get("noise_floor_nm"), doc.get("gap_calibrated_nm"), doc.get("gap_after_nm")
+    ranked = [r for r in doc.get("ranking") or [] if r.get("gap_held_out_nm") is not None]
+    if verdict == "missing_effect":
+        level, headline = "success", f"Missing effect: {effect}"
+        reason = (f"With {effect} added, the held-out gap falls from {nm(cal)} (calibrated) to {nm(after)}, within "
+                  f"{dg.FLOOR_FACTOR_UNEXPLAINED:g}x the noise floor of {nm(floor)}.")
+    elif verdict == "no_missing_effect":
+        level, headline = "info", "No missing effect"
+        reason = (f"After calibration the held-out gap is {nm(cal)}, within {dg.FLOOR_FACTOR_NONE:g}x the noise floor of "
+                  f"{nm(floor)}: the model explains this campaign; any candidate would be fitting noise.")
+    else:
+        level, headline = "warning", "Unexplained discrepancy"
+        best = ranked[0] if ranked else None
+        reason = (f"After calibration the held-out gap is {nm(cal)}, above {dg.FLOOR_FACTOR_NONE:g}x the noise floor of "
+                  f"{nm(floor)}, but no candidate closes it: " + (
+                      f"the best, {best['effect']}, leaves {nm(best['gap_held_out_nm'])} (a named effect must cut the gap by "
+                      f"at least {100 * dg.MIN_IMPROVEMENT:.0f} % and leave it within {dg.FLOOR_FACTOR_UNEXPLAINED:g}x the floor)."
+                      if best else "no candidate could be fitted."))
+    axes = (doc.get("locate") or {}).get("axes") or {}
+    where = (doc.get("locate") or {}).get("collapses_on")
+    return {
+        "verdict": verdict,
+        "level": level,
+        "headline": headline,
+        "reason": reason,
+        "effect": describe(effect) if effect in NAMES else None,
+        "parameters": effect_parameter_text(effect, doc.get("effect_parameters") or {}) if effect else "",
+        "collapses_on": where,
+        "collapse_eta2": (axes.get(where) or {}).get("eta2") if where else None,
+    }
+
+
+__all__ = [
+    "diagnosis_document",
+    "diagnosis_from_document",
+    "has_point_data",
+    "effect_parameter_text",
+    "ranking_rows",
+    "verdict_summary",
+]
