@@ -11,6 +11,8 @@ Figure builders take SI data and convert only for display, explicitly through
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import plotly.graph_objects as go
 import plotly.io as pio
@@ -131,6 +133,45 @@ def axis_title(quantity: str, unit: str) -> str:
     return f"{quantity} [{unit}]"
 
 
+# --- shared by the builders ------------------------------------------------------------------
+def colour(i: int) -> str:
+    """The ``i``-th colour of the palette (cycling)."""
+    return COLOURWAY[i % len(COLOURWAY)]
+
+
+def thin(n: int, max_points: int | None) -> slice:
+    """Stride that keeps at most ``max_points`` of ``n`` samples for display (None: all)."""
+    if max_points is None or n <= max_points:
+        return slice(None)
+    return slice(None, None, int(np.ceil(n / max_points)))
+
+
+def speed_title(speed_unit: str) -> str:
+    """Axis title of a speed axis in ``speed_unit``."""
+    check_speed_unit(speed_unit)
+    return axis_title("Speed", speed_unit)
+
+
+def order_text(k: float) -> str:
+    """Short label of an engine order ("2", "1.5")."""
+    return f"{k:g}"
+
+
+def number_text(v) -> str:
+    """Compact, exact text of a number (1500, 0.22, 1e-05): the same text in figure labels,
+    links and messages."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        if math.isfinite(v) and v.is_integer() and abs(v) < 1e15:
+            return str(int(v))
+        return repr(v)
+    return str(v)
+
+
 def apply(fig: go.Figure, title: str | None = None, height: int | None = None) -> go.Figure:
     """Apply the dampersim template (and optional title/height) to ``fig``."""
     fig.update_layout(template=TEMPLATE_NAME)
@@ -154,4 +195,9 @@ __all__ = [
     "angle_label",
     "axis_title",
     "apply",
+    "colour",
+    "thin",
+    "speed_title",
+    "order_text",
+    "number_text",
 ]

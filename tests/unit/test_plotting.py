@@ -167,3 +167,59 @@ def test_campbell_and_mode_shape_figures():
     fig_rad = P.campbell_figure(data, speed_unit="rad/s")
     assert fig_rad.layout.xaxis.title.text == "Speed [rad/s]"
     _check_axes(P.mode_shape_figure(res, max_frequency_hz=100))
+
+
+def test_figures_of_one_test_point(result):
+    """The dashboard's figures of one record take the result object and its parameter set."""
+    from dampersim.analysis.order_table import order_table
+
+    system = result.parameters
+    rows = order_table(result, [2.0], 0.5)
+    for fig in (
+        P.recent_traces_figure(result, 0.8, title="traces"),
+        P.windowed_spectrum_figure(result, 0.5),
+        P.mr_figure(rows),
+        P.windup_figure(result, system),
+        P.energy_balance_figure(result),
+    ):
+        _check_axes(fig)
+    assert "2" in P.mr_figure(rows).data[0].x  # orders as category labels
+    anim = P.damper_animation_figure(result, system, span=0.02, gain=3.0)
+    assert len(anim.frames) >= 2 and anim.layout.updatemenus[0].buttons[0].label.endswith("Play")
+    assert "×3" in anim.layout.title.text
+    heat = P.segment_compression_figure(result, spring="outer", dtype=np.float32)
+    assert np.asarray(heat.data[0].z).dtype == np.float32
+
+
+def test_loop_energy_and_curve_prediction_figures():
+    _check_axes(P.loop_energy_figure([1000.0, 2000.0], [3.5, 4.25]))
+    rows = _sweep()
+    tab = pd.concat([rows.assign(mean_torque_nm=tq) for tq in (100.0, 300.0, 500.0)])
+    mmap = maps.magnification_map(tab)
+    pred = maps.predict_along_curve(mmap, DEFAULT_WOT_CURVE, 2.0)
+    fig = P.curve_prediction_figure(pred, 2.0, DEFAULT_WOT_CURVE.name)
+    _check_axes(fig)
+    assert fig.data[0].name == "order 2" and "order 2" in fig.layout.title.text
+    f = np.linspace(0, 400, 401)
+    spectra = [(w, f, np.exp(-((f - 2 * w / (2 * np.pi)) ** 2))) for w in rpm_to_rad_s(np.linspace(900, 2800, 6))]
+    banded = P.banded_colourmap_figure(cm.colourmaps(spectra, spectra), f_max_hz=300, db=True)
+    _check_axes(banded)
+    heat = [t for t in banded.data if isinstance(t, go.Heatmap)]
+    assert all(np.asarray(t.z).dtype == np.float32 for t in heat)
+    assert banded.layout.coloraxis.cmax - banded.layout.coloraxis.cmin == pytest.approx(60.0)
+
+
+def test_plotting_reads_results_by_attribute_only():
+    """Figure builders import analysis and below, never results, views or the packages that
+    run work (sweeps, studies, discrepancy, simulation)."""
+    import ast
+    from pathlib import Path
+
+    banned = ("dampersim.results", "dampersim.views", "dampersim.sweeps", "dampersim.studies", "dampersim.discrepancy",
+              "dampersim.simulation")
+    for path in sorted((Path(dampersim.__file__).parent / "plotting").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            for name in names:
+                assert not name.startswith(banned), f"{path.name} imports {name}"
