@@ -23,6 +23,16 @@ def _dampersim_cache_dir(tmp_path_factory):
     os.environ.pop("DAMPERSIM_CACHE_DIR", None)
 
 
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    """A fresh, empty result cache for one test: DAMPERSIM_CACHE_DIR points at
+    ``tmp_path / "cache"`` (not created yet) until the test ends. Tests that need their
+    own cache location ask for this fixture instead of setting the variable themselves."""
+    path = tmp_path / "cache"
+    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(path))
+    return path
+
+
 def pytest_collection_modifyitems(config, items):
     if _chromium_available():
         return

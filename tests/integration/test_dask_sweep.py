@@ -32,11 +32,10 @@ def cluster():
         yield c
 
 
-@pytest.fixture
-def cache_dir(tmp_path, monkeypatch):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+@pytest.fixture(autouse=True)
+def _no_scheduler_from_environment(monkeypatch):
+    """A DAMPERSIM_SCHEDULER of the caller's shell must not redirect these tests."""
     monkeypatch.delenv("DAMPERSIM_SCHEDULER", raising=False)
-    return tmp_path / "cache"
 
 
 def test_dask_gives_identical_numbers_to_serial(cluster, cache_dir):

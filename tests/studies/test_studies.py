@@ -27,7 +27,12 @@ def _run(name, results):
     return results[name]
 
 
-@pytest.mark.parametrize("name", list(STUDIES))
+# The mapping study takes about 7 s on its quick grid: every test that needs its result
+# is slow, the other studies stay in the quick selection (-m "not slow").
+SLOW_STUDIES = {"mapping"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_STUDIES else n for n in STUDIES])
 def test_study_runs_and_is_json(name, results):
     seen = []
     res = run_study(name, quick=True, executor="serial", progress=lambda d, t, c: seen.append((d, t)))
@@ -66,6 +71,7 @@ def test_speed_stiffness(results):
     assert res["checks"]["end_segments_stall_at_high_speed"]
 
 
+@pytest.mark.slow
 def test_mapping_300_beats_100(results):
     assert _run("mapping", results)["checks"]["amplitude_300_predicts_better_than_100"]
 
@@ -83,6 +89,7 @@ def test_cli_study_json(capsys, tmp_path):
     assert (tmp_path / "additional-orders.json").exists()
 
 
+@pytest.mark.slow  # needs every study, the mapping study too
 def test_figures_build_for_every_study(results):
     from dampersim.plotting.studies import study_figures
 

@@ -28,13 +28,6 @@ def point():
     return TestPoint(SPEED, 200.0, ((2, 300.0, 0.0), (4, 100.0, 0.0)))
 
 
-@pytest.fixture
-def cache_dir(tmp_path, monkeypatch):
-    path = tmp_path / "cache"
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(path))
-    return path
-
-
 def key(system, point, **kw):
     return sc.cache_key(system, point, duration=kw.pop("duration", 1.0), window=kw.pop("window", 0.4), **kw)
 

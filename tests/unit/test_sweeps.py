@@ -27,13 +27,6 @@ RPM = 2 * math.pi / 60
 SHORT = dict(duration=1.0, window=0.4)  # 1.0 s simulated, last 0.4 s analysed
 
 
-@pytest.fixture
-def cache_dir(tmp_path, monkeypatch):
-    path = tmp_path / "cache"
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(path))
-    return path
-
-
 @pytest.fixture(scope="module")
 def system():
     return default_parameters()

@@ -1,0 +1,1 @@
+"""Unit tests: parameters, excitation, signal, results, metrics, CLI, cache and sweeps."""
