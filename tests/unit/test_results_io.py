@@ -119,6 +119,15 @@ def test_result_without_parameters_or_excitation(result, tmp_path):
     assert_same(res, SimulationResult.load(tmp_path / "r.parquet"))
 
 
+def test_result_without_segment_frames(result, tmp_path):
+    """simulate --out runs with record_segments=False: no frames, nodes of shape (0, n)."""
+    res = dataclasses.replace(result, nodes=result.nodes[:0], segment_t=result.segment_t[:0])
+    res.save(tmp_path / "r.parquet")
+    back = SimulationResult.load(tmp_path / "r.parquet")
+    assert back.nodes.shape == (0, result.nodes.shape[1])
+    assert_same(res, back)
+
+
 def test_missing_folder_is_named(result, tmp_path):
     with pytest.raises(InputError, match="does not exist"):
         result.save(tmp_path / "nowhere" / "r.parquet")
