@@ -48,11 +48,12 @@ def create_app():
     from dash import Dash, DiskcacheManager, Input, Output, clientside_callback, dcc, html, page_container
 
     import dampersim
-    from dampersim import views
     from dampersim.plotting import register_template
+    from dampersim.views.state import PAGE_PATHS, page_href
+    from dampersim.views.store import cache_dir
 
     register_template(make_default=True)
-    cache_root = views.cache_dir()
+    cache_root = cache_dir()
     os.makedirs(cache_root / "callbacks", exist_ok=True)
     manager = DiskcacheManager(diskcache.Cache(str(cache_root / "callbacks")))
     app = Dash(
@@ -72,7 +73,7 @@ def create_app():
         [
             dcc.Link([html.Img(src=app.get_asset_url("logo.svg"), className="brand-logo", alt=""),
                       html.Span("dampersim", className="brand-name")], href="/explorer", className="brand", id="nav-brand"),
-            html.Div([dcc.Link(label, href=views.PAGE_PATHS[page], id=f"nav-{page}", className="nav-link") for page, label in NAV]
+            html.Div([dcc.Link(label, href=PAGE_PATHS[page], id=f"nav-{page}", className="nav-link") for page, label in NAV]
                      + [dcc.Link(label, href=path, className="nav-link") for path, label in EXTRA_NAV],
                      className="nav-links"),
             html.Div(f"two-stage arc-spring damper on the test rig · v{dampersim.__version__}", className="nav-meta"),
@@ -93,7 +94,7 @@ def create_app():
     @app.callback(*[Output(f"nav-{page}", "href") for page, _ in NAV], Output("nav-brand", "href"), Input("shared-params", "data"))
     def nav_links(params):
         """Navbar links carry the current parameter set to the other pages."""
-        hrefs = [views.page_href(page, params) for page, _ in NAV]
+        hrefs = [page_href(page, params) for page, _ in NAV]
         return (*hrefs, hrefs[0])
 
     clientside_callback(
@@ -104,7 +105,7 @@ def create_app():
             if (here === "/") { here = "/explorer"; }
             return pages.map(p => "nav-link" + (here === p ? " active" : ""));
         }
-        """ % [views.PAGE_PATHS[p] for p, _ in NAV],
+        """ % [PAGE_PATHS[p] for p, _ in NAV],
         *[Output(f"nav-{page}", "className") for page, _ in NAV],
         Input("_pages_location", "pathname"),
     )

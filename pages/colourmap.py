@@ -14,9 +14,20 @@ import time
 import dash
 from dash import Input, Output, dcc, html
 
-from dampersim import views
 from dampersim.errors import DampersimError
-from pages import _common as C
+from dampersim.sweeps.executor import SweepCancelled
+from dampersim.views.notices import notice
+from dampersim.views.params import resolve_system
+from dampersim.views.state import (
+    PAGES,
+    orders_text_from_rows,
+    parse_orders_deg,
+    parse_query,
+    state_from_controls,
+    to_query,
+)
+from dampersim.views.sweeps import colourmap_points, colourmap_status, colourmap_view, SweepRegistry
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "colourmap"
 
@@ -26,52 +37,52 @@ CUT_OPTIONS = [{"label": f" {k}", "value": str(k)} for k in range(1, 9)]
 
 
 def layout(**query):
-    state, notices = views.parse_query(PAGE, query)
-    autorun = any(f.key in query for f in views.PAGES[PAGE])
+    state, notices = parse_query(PAGE, query)
+    autorun = any(f.key in query for f in PAGES[PAGE])
     controls = [
-        C.section("Speed sweep", [
-            C.control("Speeds", C.text("colourmap-speeds", state["speeds"], "900:2800:50"), "rpm",
+        W.section("Speed sweep", [
+            W.control("Speeds", W.text("colourmap-speeds", state["speeds"], "900:2800:50"), "rpm",
                       hint="START:STOP:STEP (inclusive) or a list. The thesis steps 10 rpm (191 points); 50 rpm gives a quick overview.",
                       cid="colourmap-speeds"),
-            C.control("Mean torque", C.number("colourmap-torque", state["torque"]), "N m", cid="colourmap-torque"),
+            W.control("Mean torque", W.number("colourmap-torque", state["torque"]), "N m", cid="colourmap-torque"),
         ]),
-        C.section("Excitation orders", [C.order_rows(PAGE, state["orders"])]),
-        C.section("Record", [
-            C.control("Simulated time per point", C.number("colourmap-duration", state["duration"]), "s", cid="colourmap-duration",
+        W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
+        W.section("Record", [
+            W.control("Simulated time per point", W.number("colourmap-duration", state["duration"]), "s", cid="colourmap-duration",
                       hint="2.6 s as the thesis. A quick sweep: 1.2 s with a 0.6 s window, about half the time, "
                            "but less time to settle and 1.7 Hz frequency resolution."),
-            C.control("Analysis window", C.number("colourmap-window", state["window"]), "s", cid="colourmap-window",
+            W.control("Analysis window", W.number("colourmap-window", state["window"]), "s", cid="colourmap-window",
                       hint="The end of each record; 1.25 s as the thesis (0.8 Hz resolution)."),
         ], open_=False),
-        C.section("Display", [
-            C.control("Top frequency", C.number("colourmap-fmax", state["fmax"]), "Hz", cid="colourmap-fmax"),
+        W.section("Display", [
+            W.control("Top frequency", W.number("colourmap-fmax", state["fmax"]), "Hz", cid="colourmap-fmax"),
             dcc.Checklist(id="colourmap-db", options=[{"label": " colour in dB re 1 N m", "value": "db"}],
                           value=["db"] if state["db"] else [], className="checks"),
-            C.control("Order cuts", dcc.Checklist(id="colourmap-cuts", options=CUT_OPTIONS,
+            W.control("Order cuts", dcc.Checklist(id="colourmap-cuts", options=CUT_OPTIONS,
                                                   value=[c for c in state["cuts"].split(",") if c in {o["value"] for o in CUT_OPTIONS}],
                                                   inline=True, className="checks")),
         ]),
-        C.run_panel(PAGE, "Run sweep"),
+        W.run_panel(PAGE, "Run sweep"),
     ]
     content = [
-        *C.background_header(PAGE),
+        *J.background_header(PAGE),
         html.Div([
-            C.card(None, C.graph("colourmap-graph", 480, "No sweep shown yet: press Run sweep"), wide=True),
-            C.card(None, [C.graph("colourmap-cuts-graph", 650, "No sweep shown yet"),
+            W.card(None, W.graph("colourmap-graph", 480, "No sweep shown yet: press Run sweep"), wide=True),
+            W.card(None, [W.graph("colourmap-cuts-graph", 650, "No sweep shown yet"),
                                                              html.Div(id="colourmap-cuts-table")], wide=True),
         ], className="cards"),
     ]
-    return C.page_frame(PAGE, "Colourmap", "Speed sweep at one mean torque: amplitude over speed and frequency of the input and "
+    return F.page_frame(PAGE, "Colourmap", "Speed sweep at one mean torque: amplitude over speed and frequency of the input and "
                         "output torque, engine orders as lines, and the order amplitudes along them.",
-                        controls, content, notices, C.background_stores(PAGE, state["params"], autorun))
+                        controls, content, notices, J.background_stores(PAGE, state["params"], autorun))
 
 
-C.register_link_callbacks(PAGE)
+F.register_link_callbacks(PAGE)
 
 CONTROL_INPUTS = [
     Input("colourmap-speeds", "value"),
     Input("colourmap-torque", "value"),
-    *C.order_inputs(PAGE),
+    *W.order_inputs(PAGE),
     Input("colourmap-duration", "value"),
     Input("colourmap-window", "value"),
     Input("colourmap-fmax", "value"),
@@ -83,14 +94,14 @@ CONTROL_INPUTS = [
 def state_from_values(values, base_params):
     """Controls -> (state, system, notices)."""
     speeds, torque, ks, amps, phases, duration, window, fmax, db, cuts = values
-    orders_text, notices = C.orders_text_from_rows(ks, amps, phases)
+    orders_text, notices = orders_text_from_rows(ks, amps, phases)
     cuts_text = ",".join(sorted(cuts or [], key=float)) or None
     if cuts is not None and not cuts:
-        notices.append(views.notice("No order cut selected; showing the excited orders."))
-        cuts_text = ",".join(f"{k:g}" for k, a, _ in views.parse_orders_deg(orders_text or "2:300") if k <= 8 and (2 * k).is_integer()) or "2"
-    state, more = views.state_from_controls(PAGE, {"speeds": speeds, "torque": torque, "orders": orders_text, "duration": duration,
-                                                   "window": window, "fmax": fmax, "db": bool(db), "cuts": cuts_text}, base_params)
-    system = views.resolve_system(state["params"], more)
+        notices.append(notice("No order cut selected; showing the excited orders."))
+        cuts_text = ",".join(f"{k:g}" for k, a, _ in parse_orders_deg(orders_text or "2:300") if k <= 8 and (2 * k).is_integer()) or "2"
+    state, more = state_from_controls(PAGE, {"speeds": speeds, "torque": torque, "orders": orders_text, "duration": duration,
+                                             "window": window, "fmax": fmax, "db": bool(db), "cuts": cuts_text}, base_params)
+    system = resolve_system(state["params"], more)
     return state, system, notices + more
 
 
@@ -98,12 +109,12 @@ def request(run, initial, values, base_params, autorun):
     """Foreground part: validate, mirror into the URL, show a cached view at once, or
     start the sweep (Run, or opening a shared link)."""
     state, system, notices = state_from_values(values, base_params)
-    out = {"search": views.to_query(PAGE, state), "params": state["params"], "notices": notices}
+    out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
     try:
-        view = views.colourmap_view(system, state, cache_only=True)
-        st = views.colourmap_status(system, state)
+        view = colourmap_view(system, state, cache_only=True)
+        st = colourmap_status(system, state)
     except DampersimError as exc:
-        out["notices"] = notices + [views.notice(f"This sweep cannot run: {exc}", "error")]
+        out["notices"] = notices + [notice(f"This sweep cannot run: {exc}", "error")]
         out["status"] = "Not started."
         return out
     if view is not None:
@@ -115,8 +126,8 @@ def request(run, initial, values, base_params, autorun):
         out["job"] = {"state": state}
         out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
         return out
-    est = C.estimate_seconds(missing, state["duration"])
-    out["status"] = C.render_notices([views.notice(
+    est = J.estimate_seconds(missing, state["duration"])
+    out["status"] = W.render_notices([notice(
         f"Not computed yet: {st['total']} test points ({st['cached']} already in the cache), about {est:.0f} s. Press Run sweep.", "info")])
     return out
 
@@ -124,22 +135,20 @@ def request(run, initial, values, base_params, autorun):
 def job(job_data, progress):
     """Background part: run the sweep with progress; a cancelled job is killed by Dash (the
     finished points are in the cache already)."""
-    from dampersim.sweeps.executor import SweepCancelled
-
     state = job_data["state"]
-    system = views.resolve_system(state["params"])
-    reg = views.SweepRegistry()
+    system = resolve_system(state["params"])
+    reg = SweepRegistry()
     t0 = time.monotonic()
     try:
-        total = len(views._sweep_points(state["speeds"], [float(state["torque"])], state["orders"]))
+        total = len(colourmap_points(state))
         reg.start(PAGE, total)
         progress(0, total, f"0 / {total} test points · starting worker processes…")
 
         def on_progress(done, total, cached):
             reg.beat()
-            progress(done, total, C.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
+            progress(done, total, J.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
 
-        view = views.colourmap_view(system, state, progress=on_progress)
+        view = colourmap_view(system, state, progress=on_progress)
         return {"key": view["key"]}
     except SweepCancelled as exc:
         return {"error": str(exc)}
@@ -153,13 +162,13 @@ def job(job_data, progress):
 
 def render(view):
     s = view["summary"]
-    cards = C.summary_cards(
-        [(f"Order {r['order']:g}", f"MR ≤ {C.fmt(r['max_mr'], 3)}", f"max at {C.fmt(r['at_rpm'], 4, 'rpm')}") for r in view["cuts"]]
+    cards = W.summary_cards(
+        [(f"Order {r['order']:g}", f"MR ≤ {W.fmt(r['max_mr'], 3)}", f"max at {W.fmt(r['at_rpm'], 4, 'rpm')}") for r in view["cuts"]]
         + [("Sweep", f"{s['points']} points", f"{s['sweep_time_s']:.1f} s, {s['computed']} computed, {s['from_cache']} cached")]
     )
-    rows = [{"order": f"{r['order']:g}", "max": C.fmt(r["max_mr"], 4), "at": C.fmt(r["at_rpm"], 5), "mean": C.fmt(r["mean_mr"], 4)}
+    rows = [{"order": f"{r['order']:g}", "max": W.fmt(r["max_mr"], 4), "at": W.fmt(r["at_rpm"], 5), "mean": W.fmt(r["mean_mr"], 4)}
             for r in view["cuts"]]
-    tab = C.table([("order", "Order"), ("max", "Largest MR [-]"), ("at", "at speed [rpm]"), ("mean", "Mean MR [-]")], rows,
+    tab = W.table([("order", "Order"), ("max", "Largest MR [-]"), ("at", "at speed [rpm]"), ("mean", "Mean MR [-]")], rows,
                   cid="colourmap-mr-table")
     return view["figures"]["colourmap"], view["figures"]["cuts"], tab, cards
 
@@ -169,8 +178,8 @@ SHOW_OUTPUTS = [Output("colourmap-graph", "figure"), Output("colourmap-cuts-grap
 
 
 def show(data):
-    return C.show_view(data, render, len(SHOW_OUTPUTS), "colourmaps")
+    return J.show_view(data, render, len(SHOW_OUTPUTS), "colourmaps")
 
 
-callbacks = C.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
+callbacks = J.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
                                   show_outputs=SHOW_OUTPUTS)

@@ -17,10 +17,29 @@ import time
 import dash
 from dash import Input, Output, State, callback, dcc, html, no_update
 
-from dampersim import views
-from dampersim.discrepancy.diagnose import MIN_TORSIONAL_POINTS
 from dampersim.errors import DampersimError
-from pages import _common as C
+from dampersim.views.discrepancy import (
+    CAMPAIGN_ACCEPTED,
+    MIN_TORSIONAL_POINTS,
+    UPLOAD_PREFIX,
+    campaign_summary,
+    diagnosis_seconds,
+    discrepancy_choice,
+    discrepancy_figures,
+    discrepancy_folder,
+    discrepancy_query,
+    discrepancy_value,
+    discrepancy_view,
+    example_campaigns,
+    parse_discrepancy_query,
+    ranking_rows,
+    unpack_campaign_zip,
+    upload_label,
+    verdict_summary,
+)
+from dampersim.views.notices import notice
+from dampersim.views.sweeps import SweepRegistry
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "discrepancy"
 
@@ -39,58 +58,58 @@ CALIBRATION_LABELS = {
 def _options(examples: dict, state: dict) -> list:
     opts = [{"label": f"example: {name}", "value": name} for name in examples]
     if state.get("upload"):
-        opts.append({"label": views.upload_label(state["upload"]), "value": views.UPLOAD_PREFIX + state["upload"]})
+        opts.append({"label": upload_label(state["upload"]), "value": UPLOAD_PREFIX + state["upload"]})
     return opts
 
 
 def layout(**query):
-    examples = views.example_campaigns()
-    state, notices = views.parse_discrepancy_query(query, examples)
+    examples = example_campaigns()
+    state, notices = parse_discrepancy_query(query, examples)
     # a shared link to a campaign starts its diagnosis (as on the other pages), unless a
     # value of the link was refused and replaced
     autorun = any(k in query for k in ("campaign", "upload")) and not any(n["level"] == "warning" for n in notices)
     controls = [
-        C.section("Campaign", [
-            C.control("Campaign", dcc.Dropdown(id="discrepancy-campaign", options=_options(examples, state),
-                                               value=views.discrepancy_value(state), clearable=False, className="dropdown",
+        W.section("Campaign", [
+            W.control("Campaign", dcc.Dropdown(id="discrepancy-campaign", options=_options(examples, state),
+                                               value=discrepancy_value(state), clearable=False, className="dropdown",
                                                placeholder="upload a campaign"),
                       cid="discrepancy-campaign", hint="A bundled example, or a campaign uploaded below."),
-            C.control("Upload a campaign", dcc.Upload(
+            W.control("Upload a campaign", dcc.Upload(
                 id="discrepancy-upload", children=html.Div(["Drop a campaign .zip here or ", html.A("choose one")]),
                 className="upload", multiple=False, accept=".zip,application/zip"),
-                hint=f"Accepted: {views.CAMPAIGN_ACCEPTED}."),
+                hint=f"Accepted: {CAMPAIGN_ACCEPTED}."),
             html.Div(id="discrepancy-upload-notices", className="notices"),
         ]),
-        C.run_panel(PAGE, "Run diagnosis"),
-        C.section("How it works", [html.P(
+        W.run_panel(PAGE, "Run diagnosis"),
+        W.section("How it works", [html.P(
             "Every measured input torque drives the model (default parameter set); the estimated parameters are "
             "calibrated on two thirds of the torsional points; each candidate effect is screened, the best few are "
             "fitted, and all are judged on the held-out third, which no fit ever sees. Gaps are RMS errors of the "
             "output order amplitudes 1-8.", className="hint")], open_=False),
     ]
     content = [
-        *C.background_header(PAGE),
+        *J.background_header(PAGE),
         html.Div([
-            C.card("Campaign validation", html.Div(id="discrepancy-report"), wide=True),
-            C.card("Verdict", html.Div(html.P("No diagnosis shown yet: press Run diagnosis.", className="hint"),
+            W.card("Campaign validation", html.Div(id="discrepancy-report"), wide=True),
+            W.card("Verdict", html.Div(html.P("No diagnosis shown yet: press Run diagnosis.", className="hint"),
                                        id="discrepancy-verdict"), wide=True),
-            C.card("Held-out gap at each stage", C.graph("discrepancy-gap", 360, "No diagnosis shown yet")),
-            C.card("Candidate effects: held-out gap", C.graph("discrepancy-ranking-fig", 360, "No diagnosis shown yet")),
-            C.card("Ranking of the candidate effects", html.Div(id="discrepancy-ranking"), wide=True),
-            C.card("Where the model disagrees (diamonds: held-out points)",
-                   C.graph("discrepancy-map", 380, "No diagnosis shown yet"), wide=True),
-            C.card(None, C.graph("discrepancy-profile", 360, "No diagnosis shown yet"), wide=True),
-            C.card("Held-out points: measured against the model as given and the final model",
-                   C.graph("discrepancy-overlays", None, "No diagnosis shown yet"), wide=True),
-            C.card(None, html.Details([html.Summary("Diagnosis document (JSON)"), html.Pre(id="discrepancy-json")]), wide=True),
+            W.card("Held-out gap at each stage", W.graph("discrepancy-gap", 360, "No diagnosis shown yet")),
+            W.card("Candidate effects: held-out gap", W.graph("discrepancy-ranking-fig", 360, "No diagnosis shown yet")),
+            W.card("Ranking of the candidate effects", html.Div(id="discrepancy-ranking"), wide=True),
+            W.card("Where the model disagrees (diamonds: held-out points)",
+                   W.graph("discrepancy-map", 380, "No diagnosis shown yet"), wide=True),
+            W.card(None, W.graph("discrepancy-profile", 360, "No diagnosis shown yet"), wide=True),
+            W.card("Held-out points: measured against the model as given and the final model",
+                   W.graph("discrepancy-overlays", None, "No diagnosis shown yet"), wide=True),
+            W.card(None, html.Details([html.Summary("Diagnosis document (JSON)"), html.Pre(id="discrepancy-json")]), wide=True),
         ], className="cards"),
     ]
-    return C.page_frame(PAGE, "Discrepancy", "Where model and measurement disagree, which physical effect the model is "
+    return F.page_frame(PAGE, "Discrepancy", "Where model and measurement disagree, which physical effect the model is "
                         "missing, and how much of the gap adding it closes on test points that no fit has seen.",
-                        controls, content, notices, C.background_stores(PAGE, None, autorun))
+                        controls, content, notices, J.background_stores(PAGE, None, autorun))
 
 
-C.register_link_callbacks(PAGE)
+F.register_link_callbacks(PAGE)
 
 
 # --------------------------------------------------------------------------- upload and validation
@@ -100,17 +119,17 @@ def upload(contents, filename, options):
     if not contents:
         return no_update, no_update, []
     try:
-        upload_id = views.unpack_campaign_zip(contents, filename)
+        upload_id = unpack_campaign_zip(contents, filename)
     except DampersimError as exc:
-        return no_update, no_update, C.render_notices([views.notice(f"The upload was refused: {exc}", "error")])
+        return no_update, no_update, W.render_notices([notice(f"The upload was refused: {exc}", "error")])
     except Exception as exc:  # never let a strange file take the page down
-        return no_update, no_update, C.render_notices([views.notice(
+        return no_update, no_update, W.render_notices([notice(
             f"The upload was refused: {filename or 'the file'} could not be read ({type(exc).__name__}: {exc}); "
-            f"accepted is {views.CAMPAIGN_ACCEPTED}", "error")])
-    value = views.UPLOAD_PREFIX + upload_id
-    options = [o for o in (options or []) if o.get("value") != value] + [{"label": views.upload_label(upload_id), "value": value}]
+            f"accepted is {CAMPAIGN_ACCEPTED}", "error")])
+    value = UPLOAD_PREFIX + upload_id
+    options = [o for o in (options or []) if o.get("value") != value] + [{"label": upload_label(upload_id), "value": value}]
     text = f"{filename or 'The zip'} was unpacked; its validation report is shown on the right."
-    return options, value, C.render_notices([views.notice(text, "success")])
+    return options, value, W.render_notices([notice(text, "success")])
 
 
 @callback(
@@ -127,39 +146,39 @@ def upload_cb(contents, filename, options):
 
 
 def report(summary: dict):
-    """The validation report of a campaign (see views.campaign_summary) as page content."""
+    """The validation report of a campaign (see campaign_summary) as page content."""
     if summary.get("error"):
-        return C.render_notices([views.notice(f"This campaign cannot be read: {summary['error']}. "
-                                              f"Accepted is {views.CAMPAIGN_ACCEPTED}.", "error")])
+        return W.render_notices([notice(f"This campaign cannot be read: {summary['error']}. "
+                                        f"Accepted is {CAMPAIGN_ACCEPTED}.", "error")])
     head = html.P([html.B(summary["name"]), f": {summary['valid']} of {summary['rows']} test points valid "
                    f"({summary['torsional']} torsional, {summary['ramps']} ramps)."
                    + (f" {summary['description']}" if summary.get("description") else "")])
     notes = []
     if summary["problems"]:
-        notes.append(views.notice(f"{len(summary['problems'])} problem(s) found: the test points concerned are left out "
-                                  "of the diagnosis.", "warning"))
+        notes.append(notice(f"{len(summary['problems'])} problem(s) found: the test points concerned are left out "
+                            "of the diagnosis.", "warning"))
     else:
-        notes.append(views.notice("No problems found.", "success"))
+        notes.append(notice("No problems found.", "success"))
     if not summary["ready"]:
-        notes.append(views.notice(f"Only {summary['torsional']} valid torsional test point(s): the diagnosis needs at least "
-                                  f"{MIN_TORSIONAL_POINTS}.", "error"))
-    out = [head, *C.render_notices(notes)]
+        notes.append(notice(f"Only {summary['torsional']} valid torsional test point(s): the diagnosis needs at least "
+                            f"{MIN_TORSIONAL_POINTS}.", "error"))
+    out = [head, *W.render_notices(notes)]
     if summary["problems"]:
-        out.append(C.table([("file", "File"), ("field", "Field"), ("point", "Point"), ("message", "Problem")],
+        out.append(W.table([("file", "File"), ("field", "Field"), ("point", "Point"), ("message", "Problem")],
                            summary["problems"], cid="discrepancy-problems"))
     return out
 
 
 def report_for(value):
-    examples = views.example_campaigns()
-    _state, _notices, folder = views.discrepancy_choice(value, examples)  # refused values: notices come from the request
+    examples = example_campaigns()
+    _state, _notices, folder = discrepancy_choice(value, examples)  # refused values: notices come from the request
     if folder is None:
-        return C.render_notices([views.notice("No campaign chosen: pick an example or upload a campaign.", "info")])
+        return W.render_notices([notice("No campaign chosen: pick an example or upload a campaign.", "info")])
     try:
-        return report(views.campaign_summary(folder))
+        return report(campaign_summary(folder))
     except Exception as exc:  # a campaign the reader did not foresee: say so, keep serving
-        return C.render_notices([views.notice(f"This campaign cannot be read ({type(exc).__name__}: {exc}); "
-                                              f"accepted is {views.CAMPAIGN_ACCEPTED}.", "error")])
+        return W.render_notices([notice(f"This campaign cannot be read ({type(exc).__name__}: {exc}); "
+                                        f"accepted is {CAMPAIGN_ACCEPTED}.", "error")])
 
 
 @callback(Output("discrepancy-report", "children"), Input("discrepancy-campaign", "value"))
@@ -172,25 +191,25 @@ CONTROL_INPUTS = [Input("discrepancy-campaign", "value")]
 
 
 def request(run, initial, values, base_params, autorun):
-    examples = views.example_campaigns()
-    state, notices, folder = views.discrepancy_choice(values[0], examples)
-    out = {"search": views.discrepancy_query(state), "notices": notices}
+    examples = example_campaigns()
+    state, notices, folder = discrepancy_choice(values[0], examples)
+    out = {"search": discrepancy_query(state), "notices": notices}
     if folder is None:
-        out["status"] = C.render_notices([views.notice("Pick an example campaign or upload one.", "info")])
+        out["status"] = W.render_notices([notice("Pick an example campaign or upload one.", "info")])
         return out
     try:
-        view = views.discrepancy_view(folder, cache_only=True)
+        view = discrepancy_view(folder, cache_only=True)
         if view is not None:
             out["hit"] = {"key": view["key"], "from": "cache"}
             out["status"] = "Loading from the cache…"
             return out
-        summary = views.campaign_summary(folder)
+        summary = campaign_summary(folder)
     except DampersimError as exc:
-        out["notices"] = notices + [views.notice(f"This campaign cannot be diagnosed: {exc}", "error")]
+        out["notices"] = notices + [notice(f"This campaign cannot be diagnosed: {exc}", "error")]
         out["status"] = "Not started."
         return out
     if not summary["ready"]:
-        out["status"] = C.render_notices([views.notice(
+        out["status"] = W.render_notices([notice(
             f"This campaign cannot be diagnosed: {summary['torsional']} valid torsional test point(s), at least "
             f"{MIN_TORSIONAL_POINTS} are needed (see the validation report).", "error")])
         return out
@@ -198,8 +217,8 @@ def request(run, initial, values, base_params, autorun):
         out["job"] = {"state": state}
         out["status"] = f"Starting the diagnosis of {summary['torsional']} torsional test points…"
         return out
-    est = views.diagnosis_seconds(summary["record_s"])
-    out["status"] = C.render_notices([views.notice(
+    est = diagnosis_seconds(summary["record_s"])
+    out["status"] = W.render_notices([notice(
         f"Not diagnosed yet: {summary['torsional']} torsional test points, about {est:.0f} s on this server. "
         "Press Run diagnosis.", "info")])
     return out
@@ -207,10 +226,10 @@ def request(run, initial, values, base_params, autorun):
 
 def job(job_data, progress):
     state = job_data["state"]
-    folder = views.discrepancy_folder(state, views.example_campaigns())
+    folder = discrepancy_folder(state, example_campaigns())
     if folder is None:
         return {"error": "the campaign is no longer on this server (upload it again)"}
-    reg = views.SweepRegistry()
+    reg = SweepRegistry()
     t0 = time.monotonic()
     try:
         reg.start(PAGE, 0)
@@ -218,10 +237,10 @@ def job(job_data, progress):
 
         def on_progress(fraction, text):
             reg.beat()
-            extra = C.others_text(reg.others(), "run", "on this server share the cores")
+            extra = J.others_text(reg.others(), "run", "on this server share the cores")
             progress(int(round(100 * fraction)), 100, f"{text} · {time.monotonic() - t0:.0f} s{extra}")
 
-        view = views.discrepancy_view(folder, progress=on_progress)
+        view = discrepancy_view(folder, progress=on_progress)
         return {"key": view["key"]}
     except DampersimError as exc:
         return {"error": str(exc)}
@@ -232,12 +251,12 @@ def job(job_data, progress):
 
 
 def _nm(v):
-    return C.fmt(v, 3, "N m")
+    return W.fmt(v, 3, "N m")
 
 
 def verdict_block(doc: dict):
-    v = views.verdict_summary(doc)
-    parts = [*C.render_notices([views.notice(f"{v['headline']}. {v['reason']}", v["level"])])]
+    v = verdict_summary(doc)
+    parts = [*W.render_notices([notice(f"{v['headline']}. {v['reason']}", v["level"])])]
     if v["effect"]:
         e = v["effect"]
         parts.append(html.P([html.B(e["name"]), f": {e['description']}. Fitted: {v['parameters']}."]))
@@ -250,13 +269,13 @@ def verdict_block(doc: dict):
     cal = doc.get("calibration") or {}
     if cal:
         parts.append(html.P("Calibration (scale factors on the estimated parameters): " + ", ".join(
-            f"{CALIBRATION_LABELS.get(k, k)} ×{C.fmt(x, 3)}" for k, x in cal.items()) + ".", className="hint"))
+            f"{CALIBRATION_LABELS.get(k, k)} ×{W.fmt(x, 3)}" for k, x in cal.items()) + ".", className="hint"))
     return parts
 
 
 def ranking_table(doc: dict):
     rows = []
-    for r in views.ranking_rows(doc):
+    for r in ranking_rows(doc):
         rows.append({
             "rank": str(r["rank"]), "effect": r["effect"], "parameters": r["parameters"],
             "gap": _nm(r["gap_held_out_nm"]),
@@ -273,22 +292,22 @@ def ranking_table(doc: dict):
                   "is the training residual of a linearised signature fit). Each candidate is fitted from the calibrated "
                   "or the estimated parameters, whichever its screen fits better: from the estimated ones when the "
                   "calibration had imitated the effect.", className="hint")
-    return [C.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
+    return [W.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
 
 
 def render(view):
     doc = view["diagnosis"]
-    figs = views.discrepancy_figures(doc)
+    figs = discrepancy_figures(doc)
     missing = "This diagnosis document holds no per-point data"
 
     def fig(name):
-        return figs[name] if figs.get(name) is not None else C.empty_figure(missing)
+        return figs[name] if figs.get(name) is not None else W.empty_figure(missing)
 
     camp = view.get("campaign") or {}
     s = view.get("summary") or {}
     sims = s.get("simulations", doc.get("simulations"))
-    took = C.fmt(s.get("compute_time_s", doc.get("wall_time_s")), 3, "s")
-    cards = C.summary_cards([
+    took = W.fmt(s.get("compute_time_s", doc.get("wall_time_s")), 3, "s")
+    cards = W.summary_cards([
         ("Verdict", doc["verdict"].replace("_", " "), doc.get("effect") or None),
         ("Held-out gap", f"{_nm(doc.get('gap_before_nm'))} → {_nm(doc.get('gap_after_nm'))}",
          f"noise floor {_nm(doc.get('noise_floor_nm'))}; {len(doc.get('held_out_points') or [])} held-out points"),
@@ -312,10 +331,10 @@ SHOW_OUTPUTS = [
 
 
 def show(data):
-    return C.show_view(data, render, len(SHOW_OUTPUTS), "results")
+    return J.show_view(data, render, len(SHOW_OUTPUTS), "results")
 
 
-callbacks = C.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
+callbacks = J.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
                                   show_outputs=SHOW_OUTPUTS,
                                   cancel_text="Cancelled. The results shown are the previous ones; press Run diagnosis to "
                                               "start again (a diagnosis is cached only once it has finished).")

@@ -14,59 +14,55 @@ import time
 import dash
 from dash import Input, Output, dcc, html
 
-from dampersim import views
 from dampersim.errors import DampersimError
-from dampersim.excitation import PROTOCOLS
-from pages import _common as C
+from dampersim.views.hysteresis import PROTOCOL_NAMES, hysteresis_view, protocol_label, simulated_seconds
+from dampersim.views.notices import notice
+from dampersim.views.params import resolve_system
+from dampersim.views.state import MAX_LOOP_SPEEDS, PAGES, parse_query, state_from_controls, to_query
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "hysteresis"
 
 dash.register_page(__name__, path="/hysteresis", name="Hysteresis", title="Hysteresis · dampersim", order=2)
 
 
-def _protocol_label(name):
-    start, pos, neg, end = PROTOCOLS[name]
-    pts = [p for p in (start, pos, neg, end) if p is not None]
-    return f"{name}  ({' → '.join(f'{p:g}' for p in pts)} N m)"
-
-
 def layout(**query):
-    state, notices = views.parse_query(PAGE, query)
-    autorun = any(f.key in query for f in views.PAGES[PAGE])
+    state, notices = parse_query(PAGE, query)
+    autorun = any(f.key in query for f in PAGES[PAGE])
     controls = [
-        C.section("Protocol ([thesis] Table 3.1)", [
-            C.control("Ramp protocol", dcc.Dropdown(id="hysteresis-protocol", options=[{"label": _protocol_label(p), "value": p} for p in PROTOCOLS],
+        W.section("Protocol ([thesis] Table 3.1)", [
+            W.control("Ramp protocol", dcc.Dropdown(id="hysteresis-protocol", options=[{"label": protocol_label(p), "value": p} for p in PROTOCOL_NAMES],
                                                     value=state["protocol"], clearable=False, className="dropdown")),
-            C.control("Speeds", C.text("hysteresis-speeds", state["speeds"], "1000,2000"), "rpm",
-                      hint=f"One loop per speed, at most {views.MAX_LOOP_SPEEDS}; the thesis tests 1000-2000 rpm.", cid="hysteresis-speeds"),
-            C.control("Ramp rate", C.number("hysteresis-rate", state["rate"]), "N m/s", hint="The rig ramps at 50 N m/s.", cid="hysteresis-rate"),
-            C.control("Hold at the peaks", C.number("hysteresis-hold", state["hold"]), "s", cid="hysteresis-hold"),
+            W.control("Speeds", W.text("hysteresis-speeds", state["speeds"], "1000,2000"), "rpm",
+                      hint=f"One loop per speed, at most {MAX_LOOP_SPEEDS}; the thesis tests 1000-2000 rpm.", cid="hysteresis-speeds"),
+            W.control("Ramp rate", W.number("hysteresis-rate", state["rate"]), "N m/s", hint="The rig ramps at 50 N m/s.", cid="hysteresis-rate"),
+            W.control("Hold at the peaks", W.number("hysteresis-hold", state["hold"]), "s", cid="hysteresis-hold"),
         ]),
-        C.section("Display", [
-            C.control("Windup", dcc.RadioItems(id="hysteresis-windup", options=[{"label": " total (as measured)", "value": "total"},
+        W.section("Display", [
+            W.control("Windup", dcc.RadioItems(id="hysteresis-windup", options=[{"label": " total (as measured)", "value": "total"},
                                                                             {"label": " outer set", "value": "outer"},
                                                                             {"label": " inner set", "value": "inner"}],
                                                value=state["windup"], className="radios")),
             dcc.Checklist(id="hysteresis-lowpass", options=[{"label": " 10 Hz first-order low pass (as the rig data)", "value": "on"}],
                           value=["on"] if state["lowpass"] else [], className="checks"),
         ]),
-        C.run_panel(PAGE, "Run ramps"),
+        W.run_panel(PAGE, "Run ramps"),
     ]
     content = [
-        *C.background_header(PAGE),
+        *J.background_header(PAGE),
         html.Div([
-            C.card(None, C.graph("hysteresis-loops", 460, "No loops shown yet: press Run ramps"), wide=True),
-            C.card(None, C.graph("hysteresis-stiffness", 380, "No loops shown yet")),
-            C.card(None, [C.graph("hysteresis-energy", 380, "No loops shown yet")]),
-            C.card("Loop figures", html.Div(id="hysteresis-table"), wide=True),
+            W.card(None, W.graph("hysteresis-loops", 460, "No loops shown yet: press Run ramps"), wide=True),
+            W.card(None, W.graph("hysteresis-stiffness", 380, "No loops shown yet")),
+            W.card(None, [W.graph("hysteresis-energy", 380, "No loops shown yet")]),
+            W.card("Loop figures", html.Div(id="hysteresis-table"), wide=True),
         ], className="cards"),
     ]
-    return C.page_frame(PAGE, "Hysteresis", "Quasi-static torque ramps at constant speed: input torque over windup, the knee where "
+    return F.page_frame(PAGE, "Hysteresis", "Quasi-static torque ramps at constant speed: input torque over windup, the knee where "
                         "the outer set meets its hardstop, dynamic stiffness along the loading branch and the energy per loop.",
-                        controls, content, notices, C.background_stores(PAGE, state["params"], autorun))
+                        controls, content, notices, J.background_stores(PAGE, state["params"], autorun))
 
 
-C.register_link_callbacks(PAGE)
+F.register_link_callbacks(PAGE)
 
 CONTROL_INPUTS = [
     Input("hysteresis-protocol", "value"),
@@ -80,25 +76,19 @@ CONTROL_INPUTS = [
 
 def state_from_values(values, base_params):
     protocol, speeds, rate, hold, windup, lowpass = values
-    state, notices = views.state_from_controls(PAGE, {"protocol": protocol, "speeds": speeds, "rate": rate, "hold": hold,
-                                                      "windup": windup, "lowpass": bool(lowpass)}, base_params)
-    system = views.resolve_system(state["params"], notices)
+    state, notices = state_from_controls(PAGE, {"protocol": protocol, "speeds": speeds, "rate": rate, "hold": hold,
+                                                "windup": windup, "lowpass": bool(lowpass)}, base_params)
+    system = resolve_system(state["params"], notices)
     return state, system, notices
-
-
-def _simulated_seconds(state):
-    from dampersim.excitation import ramp_protocol
-
-    return ramp_protocol(state["protocol"], 100.0, rate=float(state["rate"]), hold=float(state["hold"])).duration
 
 
 def request(run, initial, values, base_params, autorun):
     state, system, notices = state_from_values(values, base_params)
-    out = {"search": views.to_query(PAGE, state), "params": state["params"], "notices": notices}
+    out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
     try:
-        view = views.hysteresis_view(system, state, cache_only=True)
+        view = hysteresis_view(system, state, cache_only=True)
     except DampersimError as exc:
-        out["notices"] = notices + [views.notice(f"These loops cannot run: {exc}", "error")]
+        out["notices"] = notices + [notice(f"These loops cannot run: {exc}", "error")]
         out["status"] = "Not started."
         return out
     if view is not None:
@@ -106,23 +96,23 @@ def request(run, initial, values, base_params, autorun):
         out["status"] = "Loading from the cache…"
         return out
     n = len(state["speeds"].split(","))
-    sim = _simulated_seconds(state)
+    sim = simulated_seconds(state)
     if run or (initial and autorun):
         out["job"] = {"state": state}
         out["status"] = f"Starting: {n} speed{'s' if n > 1 else ''}, {sim:.0f} s simulated each…"
         return out
-    est = n * C.estimate_seconds(1, sim)
-    out["status"] = C.render_notices([views.notice(
+    est = n * J.estimate_seconds(1, sim)
+    out["status"] = W.render_notices([notice(
         f"Not computed yet: {n} loop{'s' if n > 1 else ''} of {sim:.0f} s simulated time each, about {est:.0f} s. Press Run ramps.", "info")])
     return out
 
 
 def job(job_data, progress):
     state = job_data["state"]
-    system = views.resolve_system(state["params"])
+    system = resolve_system(state["params"])
     t0 = time.monotonic()
     n = len(state["speeds"].split(","))
-    sim = _simulated_seconds(state)
+    sim = simulated_seconds(state)
 
     def on_progress(done, total, _cached):
         el = time.monotonic() - t0
@@ -135,7 +125,7 @@ def job(job_data, progress):
 
     try:
         on_progress(0, n, 0)
-        view = views.hysteresis_view(system, state, progress=on_progress)
+        view = hysteresis_view(system, state, progress=on_progress)
         return {"key": view["key"]}
     except DampersimError as exc:
         return {"error": str(exc)}
@@ -145,17 +135,17 @@ def job(job_data, progress):
 
 def render(view):
     rows = view["loops"]
-    data = [{"speed": C.fmt(r["speed_rpm"], 5), "knee_t": C.fmt(r["knee_torque_nm"], 4), "knee_w": C.fmt(r["knee_windup_deg"], 3),
-             "k": C.fmt(r["stiffness_below_nm_per_deg"], 3), "e": C.fmt(r["energy_j"], 3), "wmax": C.fmt(r["max_windup_deg"], 3),
-             "wmin": C.fmt(r["min_windup_deg"], 3)} for r in rows]
-    tab = C.table([("speed", "Speed [rpm]"), ("knee_t", "Knee torque [N m]"), ("knee_w", "Knee windup [deg]"),
+    data = [{"speed": W.fmt(r["speed_rpm"], 5), "knee_t": W.fmt(r["knee_torque_nm"], 4), "knee_w": W.fmt(r["knee_windup_deg"], 3),
+             "k": W.fmt(r["stiffness_below_nm_per_deg"], 3), "e": W.fmt(r["energy_j"], 3), "wmax": W.fmt(r["max_windup_deg"], 3),
+             "wmin": W.fmt(r["min_windup_deg"], 3)} for r in rows]
+    tab = W.table([("speed", "Speed [rpm]"), ("knee_t", "Knee torque [N m]"), ("knee_w", "Knee windup [deg]"),
                    ("k", "Stiffness below knee [N m/deg]"), ("e", "Energy per loop [J]"), ("wmax", "Max windup [deg]"),
                    ("wmin", "Min windup [deg]")], data, cid="hysteresis-loop-table")
     first = rows[0] if rows else {}
     s = view["summary"]
-    cards = C.summary_cards([
-        ("Knee", C.fmt(first.get("knee_torque_nm"), 4, "N m"), f"at {C.fmt(first.get('speed_rpm'), 5, 'rpm')}"),
-        ("Energy per loop", C.fmt(first.get("energy_j"), 3, "J"), f"at {C.fmt(first.get('speed_rpm'), 5, 'rpm')}"),
+    cards = W.summary_cards([
+        ("Knee", W.fmt(first.get("knee_torque_nm"), 4, "N m"), f"at {W.fmt(first.get('speed_rpm'), 5, 'rpm')}"),
+        ("Energy per loop", W.fmt(first.get("energy_j"), 3, "J"), f"at {W.fmt(first.get('speed_rpm'), 5, 'rpm')}"),
         ("Loops", f"{s['speeds']} × {s['protocol']}", f"{s['simulated_s']:.0f} s simulated each"),
     ])
     f = view["figures"]
@@ -167,9 +157,9 @@ SHOW_OUTPUTS = [Output("hysteresis-loops", "figure"), Output("hysteresis-stiffne
 
 
 def show(data):
-    return C.show_view(data, render, len(SHOW_OUTPUTS), "loops")
+    return J.show_view(data, render, len(SHOW_OUTPUTS), "loops")
 
 
-callbacks = C.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
+callbacks = J.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
                                   show_outputs=SHOW_OUTPUTS,
                                   cancel_text="Cancelled. The loops shown are the previous ones; press Run ramps to start again.")

@@ -14,9 +14,12 @@ import time
 import dash
 from dash import Input, Output, dcc, html
 
-from dampersim import views
 from dampersim.errors import DampersimError
-from pages import _common as C
+from dampersim.views.notices import notice
+from dampersim.views.params import resolve_system
+from dampersim.views.state import PAGES, orders_text_from_rows, parse_query, state_from_controls, to_query
+from dampersim.views.sweeps import maps_points, maps_status, maps_view, SweepRegistry
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "maps"
 
@@ -26,50 +29,50 @@ ORDER_OPTIONS = [{"label": f" {k}", "value": str(k)} for k in range(1, 9)]
 
 
 def layout(**query):
-    state, notices = views.parse_query(PAGE, query)
-    autorun = any(f.key in query for f in views.PAGES[PAGE])
+    state, notices = parse_query(PAGE, query)
+    autorun = any(f.key in query for f in PAGES[PAGE])
     controls = [
-        C.section("Test points", [
-            C.control("Speeds", C.text("maps-speeds", state["speeds"], "1000:2800:200"), "rpm", cid="maps-speeds",
+        W.section("Test points", [
+            W.control("Speeds", W.text("maps-speeds", state["speeds"], "1000:2800:200"), "rpm", cid="maps-speeds",
                       hint="START:STOP:STEP or a list."),
-            C.control("Mean torques", C.text("maps-torques", state["torques"], "50:400:50"), "N m", cid="maps-torques",
+            W.control("Mean torques", W.text("maps-torques", state["torques"], "50:400:50"), "N m", cid="maps-torques",
                       hint="Every speed is run at every mean torque."),
         ]),
-        C.section("Excitation orders", [C.order_rows(PAGE, state["orders"])]),
-        C.section("Record", [
-            C.control("Simulated time per point", C.number("maps-duration", state["duration"]), "s", cid="maps-duration"),
-            C.control("Analysis window", C.number("maps-window", state["window"]), "s", cid="maps-window"),
+        W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
+        W.section("Record", [
+            W.control("Simulated time per point", W.number("maps-duration", state["duration"]), "s", cid="maps-duration"),
+            W.control("Analysis window", W.number("maps-window", state["window"]), "s", cid="maps-window"),
         ], open_=False),
-        C.section("Map", [
-            C.control("Orders placed on the map", dcc.Checklist(id="maps-map-orders", options=ORDER_OPTIONS,
+        W.section("Map", [
+            W.control("Orders placed on the map", dcc.Checklist(id="maps-map-orders", options=ORDER_OPTIONS,
                                                                 value=[k for k in state["map_orders"].split(",") if k in {o["value"] for o in ORDER_OPTIONS}],
                                                                 inline=True, className="checks")),
-            C.control("Frequency range", html.Div([C.number("maps-fmin", state["fmin"]), html.Span(" to "),
-                                                   C.number("maps-fmax", state["fmax"])], className="pair"), "Hz",
+            W.control("Frequency range", html.Div([W.number("maps-fmin", state["fmin"]), html.Span(" to "),
+                                                   W.number("maps-fmax", state["fmax"])], className="pair"), "Hz",
                       hint="The thesis maps 30-200 Hz."),
-            C.control("Torque-curve order", C.number("maps-curve-order", state["curve_order"], step=0.5), None, cid="maps-curve-order",
+            W.control("Torque-curve order", W.number("maps-curve-order", state["curve_order"], step=0.5), None, cid="maps-curve-order",
                       hint="Full-load curve drawn at the frequency of this engine order."),
         ]),
-        C.run_panel(PAGE, "Run map"),
+        W.run_panel(PAGE, "Run map"),
     ]
     content = [
-        *C.background_header(PAGE),
+        *J.background_header(PAGE),
         html.Div([
-            C.card(None, C.graph("maps-map", 520, "No map shown yet: press Run map"), wide=True),
-            C.card(None, C.graph("maps-curve", 340, "No map shown yet"), wide=True),
+            W.card(None, W.graph("maps-map", 520, "No map shown yet: press Run map"), wide=True),
+            W.card(None, W.graph("maps-curve", 340, "No map shown yet"), wide=True),
         ], className="cards"),
     ]
-    return C.page_frame(PAGE, "Magnification maps", "Every test point and order placed at its excitation frequency and mean torque, "
+    return F.page_frame(PAGE, "Magnification maps", "Every test point and order placed at its excitation frequency and mean torque, "
                         "interpolated into a map of the magnification ratio; inside the black contour the damper amplifies.",
-                        controls, content, notices, C.background_stores(PAGE, state["params"], autorun))
+                        controls, content, notices, J.background_stores(PAGE, state["params"], autorun))
 
 
-C.register_link_callbacks(PAGE)
+F.register_link_callbacks(PAGE)
 
 CONTROL_INPUTS = [
     Input("maps-speeds", "value"),
     Input("maps-torques", "value"),
-    *C.order_inputs(PAGE),
+    *W.order_inputs(PAGE),
     Input("maps-duration", "value"),
     Input("maps-window", "value"),
     Input("maps-map-orders", "value"),
@@ -81,26 +84,26 @@ CONTROL_INPUTS = [
 
 def state_from_values(values, base_params):
     speeds, torques, ks, amps, phases, duration, window, map_orders, fmin, fmax, curve_order = values
-    orders_text, notices = C.orders_text_from_rows(ks, amps, phases)
+    orders_text, notices = orders_text_from_rows(ks, amps, phases)
     mo = ",".join(sorted(map_orders or [], key=float)) or None
     if map_orders is not None and not map_orders:
-        notices.append(views.notice("No order selected for the map; using order 2."))
+        notices.append(notice("No order selected for the map; using order 2."))
         mo = "2"
-    state, more = views.state_from_controls(PAGE, {"speeds": speeds, "torques": torques, "orders": orders_text, "duration": duration,
-                                                   "window": window, "map_orders": mo, "fmin": fmin, "fmax": fmax,
-                                                   "curve_order": curve_order}, base_params)
-    system = views.resolve_system(state["params"], more)
+    state, more = state_from_controls(PAGE, {"speeds": speeds, "torques": torques, "orders": orders_text, "duration": duration,
+                                             "window": window, "map_orders": mo, "fmin": fmin, "fmax": fmax,
+                                             "curve_order": curve_order}, base_params)
+    system = resolve_system(state["params"], more)
     return state, system, notices + more
 
 
 def request(run, initial, values, base_params, autorun):
     state, system, notices = state_from_values(values, base_params)
-    out = {"search": views.to_query(PAGE, state), "params": state["params"], "notices": notices}
+    out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
     try:
-        view = views.maps_view(system, state, cache_only=True)
-        st = views.maps_status(system, state)
+        view = maps_view(system, state, cache_only=True)
+        st = maps_status(system, state)
     except DampersimError as exc:
-        out["notices"] = notices + [views.notice(f"This map cannot be built: {exc}", "error")]
+        out["notices"] = notices + [notice(f"This map cannot be built: {exc}", "error")]
         out["status"] = "Not started."
         return out
     if view is not None:
@@ -111,29 +114,27 @@ def request(run, initial, values, base_params, autorun):
         out["job"] = {"state": state}
         out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
         return out
-    est = C.estimate_seconds(st["total"] - st["cached"], state["duration"])
-    out["status"] = C.render_notices([views.notice(
+    est = J.estimate_seconds(st["total"] - st["cached"], state["duration"])
+    out["status"] = W.render_notices([notice(
         f"Not computed yet: {st['total']} test points ({st['cached']} already in the cache), about {est:.0f} s. Press Run map.", "info")])
     return out
 
 
 def job(job_data, progress):
-    from dampersim.sweeps.grid import parse_torques
-
     state = job_data["state"]
-    system = views.resolve_system(state["params"])
-    reg = views.SweepRegistry()
+    system = resolve_system(state["params"])
+    reg = SweepRegistry()
     t0 = time.monotonic()
     try:
-        total = len(views._sweep_points(state["speeds"], parse_torques(state["torques"]), state["orders"]))
+        total = len(maps_points(state))
         reg.start(PAGE, total)
         progress(0, total, f"0 / {total} test points · starting worker processes…")
 
         def on_progress(done, total, cached):
             reg.beat()
-            progress(done, total, C.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
+            progress(done, total, J.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
 
-        view = views.maps_view(system, state, progress=on_progress)
+        view = maps_view(system, state, progress=on_progress)
         return {"key": view["key"]}
     except DampersimError as exc:
         return {"error": str(exc)}
@@ -145,9 +146,9 @@ def job(job_data, progress):
 
 def render(view):
     s = view["summary"]
-    cards = C.summary_cards([
-        ("Largest MR on the map", C.fmt(s["max_mr"], 3), f"{100 * (s['share_above_one'] or 0):.0f} % of the map above 1"),
-        ("Along the torque curve", f"MR ≤ {C.fmt(s['curve_max_mr'], 3)}", f"{100 * s['curve_covered']:.0f} % of the curve inside the map"),
+    cards = W.summary_cards([
+        ("Largest MR on the map", W.fmt(s["max_mr"], 3), f"{100 * (s['share_above_one'] or 0):.0f} % of the map above 1"),
+        ("Along the torque curve", f"MR ≤ {W.fmt(s['curve_max_mr'], 3)}", f"{100 * s['curve_covered']:.0f} % of the curve inside the map"),
         ("Sweep", f"{s['points']} points", f"{s['sweep_time_s']:.1f} s, {s['computed']} computed, {s['from_cache']} cached"),
     ])
     return view["figures"]["map"], view["figures"]["curve"], cards
@@ -157,8 +158,8 @@ SHOW_OUTPUTS = [Output("maps-map", "figure"), Output("maps-curve", "figure"), Ou
 
 
 def show(data):
-    return C.show_view(data, render, len(SHOW_OUTPUTS), "map")
+    return J.show_view(data, render, len(SHOW_OUTPUTS), "map")
 
 
-callbacks = C.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
+callbacks = J.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,
                                   show_outputs=SHOW_OUTPUTS)

@@ -12,9 +12,18 @@ import dash
 from dash import ALL, Input, Output, State, callback, ctx, dcc, html, no_update
 from dash.exceptions import PreventUpdate
 
-from dampersim import views
 from dampersim.errors import DampersimError
-from pages import _common as C
+from dampersim.views.notices import notice
+from dampersim.views.params import (
+    apply_table_edits,
+    parameters_toml,
+    parameters_view,
+    params_for_system,
+    parse_uploaded_parameters,
+    resolve_system,
+)
+from dampersim.views.state import parse_query, to_query
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "parameters"
 
@@ -22,7 +31,7 @@ dash.register_page(__name__, path="/parameters", name="Parameters", title="Param
 
 def table_rows(system):
     """Editable rows: every dotted parameter except labels and rig-element names."""
-    return [r for r in views.parameters_view(system) if r["name"] not in ("name", "source") and not r["name"].endswith(".name")]
+    return [r for r in parameters_view(system) if r["name"] not in ("name", "source") and not r["name"].endswith(".name")]
 
 
 GROUPS = {
@@ -57,18 +66,18 @@ def render_table(rows):
 def _set_info(system, params):
     n = len((params or {}).get("overrides") or {})
     base = "uploaded set " + params["set"] if (params or {}).get("set") else "default set"
-    return C.summary_cards([
+    return W.summary_cards([
         ("Parameter set", system.name, (system.source[:90] + "…") if len(system.source) > 90 else system.source),
         ("Changes", f"{n} value{'s' if n != 1 else ''}", f"relative to the {base}"),
     ])
 
 
 def layout(**query):
-    state, notices = views.parse_query(PAGE, query)
-    system = views.resolve_system(state["params"])
+    state, notices = parse_query(PAGE, query)
+    system = resolve_system(state["params"])
     controls = [
-        C.section("This parameter set", [html.Div(_set_info(system, state["params"]), id="parameters-info")]),
-        C.section("File", [
+        W.section("This parameter set", [html.Div(_set_info(system, state["params"]), id="parameters-info")]),
+        W.section("File", [
             dcc.Upload(id="parameters-upload", children=html.Div(["Drop a TOML parameter file here or ", html.A("choose one")]),
                        className="upload", multiple=False),
             html.Div([html.Button("Download TOML", id="parameters-download-btn", n_clicks=0, className="btn btn-primary"),
@@ -76,7 +85,7 @@ def layout(**query):
                      className="buttons", style={"marginTop": "10px"}),
             dcc.Download(id="parameters-download"),
         ]),
-        C.section("Edit", [
+        W.section("Edit", [
             html.P("Edit values in the tables (SI units: kg, m, rad, s, N m), then validate or apply. Applied changes go into "
                    "the link and to every page. Highlighted rows differ from the default set.",
                    className="hint"),
@@ -89,14 +98,14 @@ def layout(**query):
     ]
     content = [
         html.Div(id="parameters-run-notices", className="notices"),
-        C.card(None, html.Div(render_table(table_rows(system)), id="parameters-table", className="param-table-wrap"), wide=True),
+        W.card(None, html.Div(render_table(table_rows(system)), id="parameters-table", className="param-table-wrap"), wide=True),
         dcc.Store(id="parameters-params", data=state["params"]),
     ]
-    return C.page_frame(PAGE, "Parameters", "The complete parameter set of the damper, the rig and the solver, with units and accepted "
+    return F.page_frame(PAGE, "Parameters", "The complete parameter set of the damper, the rig and the solver, with units and accepted "
                         "ranges.", controls, content, notices)
 
 
-C.register_link_callbacks(PAGE)
+F.register_link_callbacks(PAGE)
 
 
 def parameters_action(action, rows, params, contents=None, filename=None):
@@ -108,39 +117,39 @@ def parameters_action(action, rows, params, contents=None, filename=None):
     """
     params = params or {"set": None, "overrides": {}}
     if action == "reset":
-        system = views.resolve_system(None)
+        system = resolve_system(None)
         return {"params": {"set": None, "overrides": {}}, "rows": table_rows(system), "notices": [],
-                "status": views.notice("Reset to the default parameter set.", "success"), "system": system}
+                "status": notice("Reset to the default parameter set.", "success"), "system": system}
     if action == "undo":
-        system = views.resolve_system(params)
-        return {"params": None, "rows": table_rows(system), "notices": [], "status": views.notice("Edits undone.", "info"), "system": system}
+        system = resolve_system(params)
+        return {"params": None, "rows": table_rows(system), "notices": [], "status": notice("Edits undone.", "info"), "system": system}
     if action == "upload":
         try:
-            system = views.parse_uploaded_parameters(contents, filename)
+            system = parse_uploaded_parameters(contents, filename)
         except DampersimError as exc:
-            return {"params": None, "rows": None, "system": None, "status": views.notice("Upload refused.", "error"),
-                    "notices": [views.notice(f"The file was not loaded: {exc}. The current parameter set is unchanged.", "error")]}
-        new = views.params_for_system(system)
+            return {"params": None, "rows": None, "system": None, "status": notice("Upload refused.", "error"),
+                    "notices": [notice(f"The file was not loaded: {exc}. The current parameter set is unchanged.", "error")]}
+        new = params_for_system(system)
         n = len(new["overrides"])
         what = f"{n} value{'s' if n != 1 else ''} differ from the default set" if not new["set"] else \
             "its structure differs from the default set, so it is stored on this server and the link refers to it"
         return {"params": new, "rows": table_rows(system), "notices": [], "system": system,
-                "status": views.notice(f"Loaded {filename or 'the file'} ({system.name}): {what}.", "success")}
+                "status": notice(f"Loaded {filename or 'the file'} ({system.name}): {what}.", "success")}
     if action in ("validate", "apply"):
         try:
-            new, system = views.apply_table_edits(params, rows or [])
+            new, system = apply_table_edits(params, rows or [])
         except DampersimError as exc:
-            return {"params": None, "rows": None, "system": None, "status": views.notice("Not valid.", "error"),
-                    "notices": [views.notice(f"Not accepted: {exc}. The applied parameter set is unchanged; fix the value or undo the edits.",
-                                             "error")]}
+            return {"params": None, "rows": None, "system": None, "status": notice("Not valid.", "error"),
+                    "notices": [notice(f"Not accepted: {exc}. The applied parameter set is unchanged; fix the value or undo the edits.",
+                                       "error")]}
         n = len(new.get("overrides") or {})
         if action == "validate":
             return {"params": None, "rows": None, "notices": [], "system": system,
-                    "status": views.notice(f"Valid: the edited set passes every check ({n} value{'s' if n != 1 else ''} differ from the base set). "
-                                           "Press Apply to use it.", "success")}
+                    "status": notice(f"Valid: the edited set passes every check ({n} value{'s' if n != 1 else ''} differ from the base set). "
+                                     "Press Apply to use it.", "success")}
         return {"params": new, "rows": table_rows(system), "notices": [], "system": system,
-                "status": views.notice(f"Applied: {n} value{'s' if n != 1 else ''} differ from the base set; every page now uses this set.",
-                                       "success")}
+                "status": notice(f"Applied: {n} value{'s' if n != 1 else ''} differ from the base set; every page now uses this set.",
+                                 "success")}
     raise PreventUpdate
 
 
@@ -165,22 +174,22 @@ def parameters_action(action, rows, params, contents=None, filename=None):
 )
 def on_action(_v, _a, _u, _r, contents, filename, values, ids, params):
     rows = [{"name": i["name"], "value": v} for i, v in zip(ids or [], values or [])]
-    initial, _ = C.trigger_kind()
+    initial, _ = J.trigger_kind()
     trig = ctx.triggered_id
     if initial:  # page load: mirror the (validated) link state
-        system = views.resolve_system(params)
-        return (no_update, no_update, "", [], views.to_query(PAGE, {"params": params}), params, _set_info(system, params))
+        system = resolve_system(params)
+        return (no_update, no_update, "", [], to_query(PAGE, {"params": params}), params, _set_info(system, params))
     action = {"parameters-validate": "validate", "parameters-apply": "apply", "parameters-undo": "undo",
               "parameters-reset": "reset", "parameters-upload": "upload"}.get(trig)
     if action == "upload" and not contents:
         raise PreventUpdate
     out = parameters_action(action, rows, params, contents, filename)
     new = out["params"]
-    status = C.render_notices([out["status"]]) if out.get("status") else ""
+    status = W.render_notices([out["status"]]) if out.get("status") else ""
     if new is None:
         return (no_update, render_table(out["rows"]) if out["rows"] is not None else no_update, status,
-                C.render_notices(out["notices"]), no_update, no_update, no_update)
-    return (new, render_table(out["rows"]), status, C.render_notices(out["notices"]), views.to_query(PAGE, {"params": new}), new,
+                W.render_notices(out["notices"]), no_update, no_update, no_update)
+    return (new, render_table(out["rows"]), status, W.render_notices(out["notices"]), to_query(PAGE, {"params": new}), new,
             _set_info(out["system"], new))
 
 
@@ -193,5 +202,5 @@ def on_action(_v, _a, _u, _r, contents, filename, values, ids, params):
 def download(n_clicks, params):
     if not n_clicks:
         raise PreventUpdate
-    system = views.resolve_system(params)
-    return dcc.send_string(views.parameters_toml(system), filename=f"{system.name}.toml", type="application/toml")
+    system = resolve_system(params)
+    return dcc.send_string(parameters_toml(system), filename=f"{system.name}.toml", type="application/toml")

@@ -11,9 +11,12 @@ from __future__ import annotations
 import dash
 from dash import Input, Output, State, callback, dcc, html, no_update
 
-from dampersim import views
 from dampersim.errors import DampersimError
-from pages import _common as C
+from dampersim.views.notices import notice
+from dampersim.views.params import resolve_system
+from dampersim.views.segments import segments_view
+from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_from_controls, to_query
+from pages import _frame as F, _widgets as W
 
 PAGE = "segments"
 
@@ -24,65 +27,65 @@ SPRINGS = [{"label": " outer arc spring", "value": "outer"}, {"label": " nested 
 
 
 def layout(**query):
-    state, notices = views.parse_query(PAGE, query)
+    state, notices = parse_query(PAGE, query)
     controls = [
-        C.section("Test point", [
-            C.control("Speed", C.slider("segments-speed", state["speed"], 300, 6000, 10,
+        W.section("Test point", [
+            W.control("Speed", W.slider("segments-speed", state["speed"], 300, 6000, 10,
                                         {300: "300", 1500: "1500", 3000: "3000", 4500: "4500", 6000: "6000"}), "rpm", cid="segments-speed"),
-            C.control("Mean torque", C.slider("segments-torque", state["torque"], -500, 1000, 5,
+            W.control("Mean torque", W.slider("segments-torque", state["torque"], -500, 1000, 5,
                                               {-500: "-500", 0: "0", 300: "300", 600: "600", 1000: "1000"}), "N m", cid="segments-torque"),
-            C.control("Simulated time", C.number("segments-duration", state["duration"]), "s", cid="segments-duration"),
+            W.control("Simulated time", W.number("segments-duration", state["duration"]), "s", cid="segments-duration"),
         ]),
-        C.section("Excitation orders", [C.order_rows(PAGE, state["orders"])]),
-        C.section("Display", [
-            C.control("Spring in the heatmap", dcc.RadioItems(id="segments-spring", options=SPRINGS, value=state["spring"], className="radios")),
-            C.control("Heatmap window", C.number("segments-window", state["window"]), "s", cid="segments-window",
+        W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
+        W.section("Display", [
+            W.control("Spring in the heatmap", dcc.RadioItems(id="segments-spring", options=SPRINGS, value=state["spring"], className="radios")),
+            W.control("Heatmap window", W.number("segments-window", state["window"]), "s", cid="segments-window",
                       hint="The end of the record shown in the heatmap; the simulated time shows it all."),
-            C.control("Animated span", C.number("segments-span", state["span"]), "s", cid="segments-span",
+            W.control("Animated span", W.number("segments-span", state["span"]), "s", cid="segments-span",
                       hint="The end of the record, drawn at the 1 kHz segment sample rate."),
-            C.control("Motion exaggeration", C.number("segments-gain", state["gain"]), "×", cid="segments-gain",
+            W.control("Motion exaggeration", W.number("segments-gain", state["gain"]), "×", cid="segments-gain",
                       hint="Oscillation about the mean position drawn enlarged; 1 = true angles."),
         ]),
-        html.Div(dcc.Link("Segment counts and parameters: Explorer / Parameters", href=views.page_href("parameters", state["params"]),
+        html.Div(dcc.Link("Segment counts and parameters: Explorer / Parameters", href=page_href("parameters", state["params"]),
                           id="segments-params-link"), className="side-link"),
     ]
     content = [
         html.Div(id="segments-run-notices", className="notices"),
         html.Div(id="segments-kpis"),
         html.Div([
-            C.card(None, C.graph("segments-animation", 600, "Computing…"), wide=True),
-            C.card(None, C.graph("segments-heatmap", 440, "Computing…")),
-            C.card("Compression per segment (steady part of the record)", html.Div(id="segments-table")),
+            W.card(None, W.graph("segments-animation", 600, "Computing…"), wide=True),
+            W.card(None, W.graph("segments-heatmap", 440, "Computing…")),
+            W.card("Compression per segment (steady part of the record)", html.Div(id="segments-table")),
         ], className="cards"),
         dcc.Store(id="segments-base-params", data=state["params"]),
         dcc.Store(id="segments-last-good"),
     ]
-    return C.page_frame(PAGE, "Segment motion", "Compression of every segment over time, and the damper drawn from the simulated "
+    return F.page_frame(PAGE, "Segment motion", "Compression of every segment over time, and the damper drawn from the simulated "
                         "node positions: the springs' end segments move first, the middle ones late.", controls, content, notices)
 
 
-C.register_link_callbacks(PAGE)
+F.register_link_callbacks(PAGE)
 
 
 def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params):
     """State, view and notices for the current controls (plain function, testable)."""
-    orders_text, notices = C.orders_text_from_rows(ks, amps, phases)
-    state, more = views.state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
-                                                   "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
+    orders_text, notices = orders_text_from_rows(ks, amps, phases)
+    state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
+                                             "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
     notices += more
-    system = views.resolve_system(state["params"], notices)
+    system = resolve_system(state["params"], notices)
     try:
-        view = views.segments_view(system, state)
+        view = segments_view(system, state)
     except DampersimError as exc:
-        notices.append(views.notice(f"The test point could not be simulated: {exc}. The previous results are kept.", "error"))
+        notices.append(notice(f"The test point could not be simulated: {exc}. The previous results are kept.", "error"))
         return {"view": None, "state": state, "notices": notices, "error": str(exc)}
     return {"view": view, "state": state, "notices": notices, "error": None}
 
 
 def _table(rows):
-    data = [{"seg": r["segment"], "mean": C.fmt(r["mean_deg"], 3), "amp": C.fmt(r["amplitude_deg"], 3), "max": C.fmt(r["max_deg"], 3)}
+    data = [{"seg": r["segment"], "mean": W.fmt(r["mean_deg"], 3), "amp": W.fmt(r["amplitude_deg"], 3), "max": W.fmt(r["max_deg"], 3)}
             for r in rows]
-    return C.table([("seg", "Segment"), ("mean", "Mean compression [deg]"), ("amp", "Oscillation amplitude [deg]"),
+    return W.table([("seg", "Segment"), ("mean", "Mean compression [deg]"), ("amp", "Oscillation amplitude [deg]"),
                     ("max", "Largest compression [deg]")], data, cid="segments-seg-table")
 
 
@@ -97,7 +100,7 @@ def _table(rows):
     Output("segments-last-good", "data"),
     Input("segments-speed", "value"),
     Input("segments-torque", "value"),
-    *C.order_inputs(PAGE),
+    *W.order_inputs(PAGE),
     Input("segments-duration", "value"),
     Input("segments-spring", "value"),
     Input("segments-window", "value"),
@@ -109,13 +112,13 @@ def _table(rows):
 )
 def update_segments(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params, last_good):
     out = segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params)
-    notices = C.render_notices(out["notices"])
+    notices = W.render_notices(out["notices"])
     if out["error"]:
-        figs = [no_update, no_update] if last_good else [C.empty_figure("No result: see the message above")] * 2
+        figs = [no_update, no_update] if last_good else [W.empty_figure("No result: see the message above")] * 2
         return (*figs, no_update, no_update, notices, no_update, no_update, no_update)
     view = out["view"]
     s = view["summary"]
-    kpis = C.summary_cards([
+    kpis = W.summary_cards([
         ("Spring", s["spring"].replace("_", " "), f"{s['segments']} segments"),
         ("End vs middle", f"{s['end_to_middle_amplitude']:.2g} ×", "oscillation of the end segments / median segment"),
         ("Frames", f"{s['frames']}", "segment states at 1 kHz"),
@@ -123,4 +126,4 @@ def update_segments(speed, torque, ks, amps, phases, duration, spring, window, s
     ])
     state = out["state"]
     return (view["figures"]["animation"], view["figures"]["heatmap"], _table(view["segments"]), kpis, notices,
-            views.to_query(PAGE, state), state["params"], view["key"])
+            to_query(PAGE, state), state["params"], view["key"])

@@ -3,22 +3,21 @@ thesis's findings and the thesis's numbers. Layout and callbacks only."""
 
 from __future__ import annotations
 
-import json
-
 import dash
 from dash import Input, Output, State, callback, dcc, html
 
-from dampersim.studies import STUDIES
+from dampersim.errors import DampersimError
+from dampersim.views.studies import DEFAULT_STUDY, STUDY_NAMES, study_view
 
 dash.register_page(__name__, path="/studies", name="Studies", title="Studies · dampersim", order=8)
 
 
-def layout(study="order-rule", quick="1", **kwargs):
-    study = study if study in STUDIES else "order-rule"
+def layout(study=DEFAULT_STUDY, quick="1", **kwargs):
+    study = study if study in STUDY_NAMES else DEFAULT_STUDY
     return html.Div([
         html.H2("Studies (thesis chapter 7)"),
         html.Div([
-            dcc.Dropdown(id="st-name", options=[{"label": n, "value": n} for n in STUDIES], value=study, clearable=False),
+            dcc.Dropdown(id="st-name", options=[{"label": n, "value": n} for n in STUDY_NAMES], value=study, clearable=False),
             dcc.Checklist(id="st-quick", options=[{"label": " reduced grid", "value": "1"}],
                           value=["1"] if str(quick) == "1" else [], inline=True),
             html.Button("Run study", id="st-run"),
@@ -42,19 +41,15 @@ def layout(study="order-rule", quick="1", **kwargs):
     prevent_initial_call=True,
 )
 def run(set_progress, _n, name, quick):
-    from dampersim.errors import DampersimError
-    from dampersim.plotting.studies import study_figures
-    from dampersim.studies import run_study
-
     def prog(done, total, cached):
         set_progress((str(done), str(max(total, 1)), f"{done} / {total} points ({cached} from cache)"))
 
     try:
-        res = run_study(name, quick=bool(quick), executor="processes", progress=prog)
+        view = study_view(name, quick=bool(quick), progress=prog)
     except DampersimError as exc:
         return [], html.Div(str(exc), className="notice"), ""
-    figs = [dcc.Graph(figure=f) for f in study_figures(res)]
-    checks = html.Ul([html.Li(f"{k}: {'agrees' if v else 'differs'}") for k, v in res["checks"].items()]
-                     + [html.Li(f"thesis: {k} = {v}") for k, v in res["thesis"].items()]
-                     + [html.Li(w) for w in res["warnings"]])
-    return figs, checks, json.dumps({k: v for k, v in res.items() if k != "results"}, indent=1)
+    figs = [dcc.Graph(figure=f) for f in view["figures"]]
+    checks = html.Ul([html.Li(f"{k}: {'agrees' if v else 'differs'}") for k, v in view["checks"]]
+                     + [html.Li(f"thesis: {k} = {v}") for k, v in view["thesis"].items()]
+                     + [html.Li(w) for w in view["warnings"]])
+    return figs, checks, view["document"]

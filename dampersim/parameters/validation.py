@@ -16,7 +16,8 @@ from dampersim.parameters import model as m
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-def _describe(meta):
+def describe_range(meta) -> str:
+    """What a numeric field accepts, from its metadata: "a value in [4, 200]", "a value > 0 kg m^2"."""
     lo, hi, lo_open = meta.get("lo"), meta.get("hi"), meta.get("lo_open")
     unit = meta.get("unit", "")
     unit = "" if unit in ("-", "") else f" {unit}"
@@ -54,12 +55,12 @@ def _check_fields(obj, prefix=""):
         if kind is float and (isinstance(v, bool) or not isinstance(v, (int, float))):
             raise ParameterError(path, v, "a number")
         if not math.isfinite(v):
-            raise ParameterError(path, v, _describe(meta))
+            raise ParameterError(path, v, describe_range(meta))
         lo, hi = meta.get("lo"), meta.get("hi")
         if lo is not None and (v < lo or (meta.get("lo_open") and v <= lo)):
-            raise ParameterError(path, v, _describe(meta))
+            raise ParameterError(path, v, describe_range(meta))
         if hi is not None and v > hi:
-            raise ParameterError(path, v, _describe(meta))
+            raise ParameterError(path, v, describe_range(meta))
 
 
 def _check_set(s: m.SpringSet, name: str):

@@ -166,7 +166,7 @@ def test_explorer_callback_keeps_figures_when_the_simulation_fails(pages, fresh_
     def boom(*a, **k):
         raise SimulationDiverged(0.5, "runaway speed", 2e-5)
 
-    monkeypatch.setattr(views, "explorer_view", boom)
+    monkeypatch.setattr(pages.explorer, "explorer_view", boom)
     res = pages.explorer.update_explorer(*explorer_args(), "previous-key")
     assert res[:5] == (no_update,) * 5  # previous figures stay
     assert "diverged at t = 0.5" in as_json(res[7]) and "notice-error" in as_json(res[7])
@@ -176,7 +176,7 @@ def test_explorer_callback_keeps_figures_when_the_simulation_fails(pages, fresh_
 
 
 def test_order_rows_to_text():
-    from pages._common import orders_text_from_rows
+    from dampersim.views.state import orders_text_from_rows
 
     text, notes = orders_text_from_rows([2, None, 4.5, 6], [300, 50, None, 10], [0, None, 0, -30])
     assert text == "2:300,6:10@-30"
@@ -221,7 +221,7 @@ def test_background_job_errors_are_reported_not_raised(pages, fresh_cache, monke
         raise SweepPointFailed(1500, 200, "SimulationDiverged", "simulation diverged at t = 0.4 s")
 
     state, _ = views.parse_query("colourmap", {"speeds": "1500", "duration": "1.2", "window": "0.5"})
-    monkeypatch.setattr(views, "colourmap_view", fail)
+    monkeypatch.setattr(pages.colourmap, "colourmap_view", fail)
     out = pages.colourmap.job({"state": state}, lambda *a: None)
     assert "1500 rpm" in out["error"] and "diverged" in out["error"]
     shown = pages.colourmap.show(out)

@@ -23,6 +23,7 @@ from dash import no_update
 
 import app  # noqa: F401  (registers the pages)
 from dampersim import views
+from dampersim.discrepancy import report
 from pages import discrepancy as D
 from tests.dashboard.test_http import DashClient
 from tests.dashboard.test_callbacks import find
@@ -61,7 +62,7 @@ def tiny(tmp_path_factory):
     root = tmp_path_factory.mktemp("discrepancy-page")
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("DAMPERSIM_CACHE_DIR", str(root / "cache"))
-        mp.setattr(views, "DISCREPANCY_OPTIONS", TINY_OPTIONS)
+        mp.setattr(views.discrepancy, "DISCREPANCY_OPTIONS", TINY_OPTIONS)
         folder = root / "tiny-campaign"
         synthesize(folder, effects=[("pendulum_absorber", {"inertia": 0.002})], perturb=0.03, seed=3,
                    points=TINY_POINTS, record=0.6)
@@ -202,7 +203,7 @@ def test_rerun_of_the_same_campaign_returns_at_once_from_the_cache(tiny):
 
 
 def test_other_options_do_not_reuse_the_cached_diagnosis(tiny, monkeypatch):
-    monkeypatch.setattr(views, "DISCREPANCY_OPTIONS", {**TINY_OPTIONS, "shortlist": 2})
+    monkeypatch.setattr(views.discrepancy, "DISCREPANCY_OPTIONS", {**TINY_OPTIONS, "shortlist": 2})
     folder = views.upload_folder(tiny["value"][len(views.UPLOAD_PREFIX):])
     assert views.discrepancy_view(folder, cache_only=True) is None  # the options are part of the key
 
@@ -250,9 +251,9 @@ def test_render_builds_the_figures_from_a_diagnosis_json(tiny):
 
 def test_document_helpers_round_trip(tiny):
     doc = views.load_view(tiny["done"]["key"])["diagnosis"]
-    d = views.diagnosis_from_document(doc)
+    d = report.diagnosis_from_document(doc)
     assert d.gap_before_nm == doc["gap_before_nm"] and set(d.residuals) == {"before", "calibrated", "after"}
-    rows = views.ranking_rows(doc)
+    rows = report.ranking_rows(doc)
     assert [r["effect"] for r in rows] == [r["effect"] for r in doc["ranking"]]
     # every candidate says which parameters it was fitted (or screened) from
     assert {r["start"] for r in rows} <= {"calibrated", "estimated"}
@@ -261,7 +262,7 @@ def test_document_helpers_round_trip(tiny):
     # 1e-12 N m: the helper does the same subtraction, so only rounding may differ
     assert all(abs(r["penalty_nm"] - (r["score_nm"] - r["gap_held_out_nm"])) < 1e-12 for r in fitted)
     with pytest.raises(Exception, match="verdict"):
-        views.diagnosis_from_document({"no": "verdict"})
+        report.diagnosis_from_document({"no": "verdict"})
 
 
 # ----------------------------------------------------------------------------- over HTTP

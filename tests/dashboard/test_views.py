@@ -398,8 +398,6 @@ def test_segments_display_options_reuse_the_simulation(fresh_cache, monkeypatch)
     state, _ = views.parse_query("segments", {"duration": SHORT, "span": "0.02"})
     system = views.resolve_system(state["params"])
     first = views.segments_view(system, state)
-    import dampersim.simulation as sim
-
-    monkeypatch.setattr(sim, "simulate", lambda *a, **k: pytest.fail("simulated again for a display option"))
+    monkeypatch.setattr(views.segments, "simulate", lambda *a, **k: pytest.fail("simulated again for a display option"))
     other = views.segments_view(system, {**state, "spring": "pair_inner", "gain": 1.0, "window": 0.5})
     assert other["key"] != first["key"] and other["summary"]["spring"] == "pair_inner"

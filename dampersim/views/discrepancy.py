@@ -1,0 +1,334 @@
+"""The Discrepancy page's data: which campaign (a bundled example or an upload), the
+campaign's validation report, and the cached diagnosis of :mod:`dampersim.discrepancy`
+with its figures.
+
+Uploaded zips are unpacked by :mod:`dampersim.discrepancy.upload` under
+``cache_dir()/"campaign-uploads"/<id>``, where the id is a hash of the zip's bytes, so the
+same upload lands in the same folder. The diagnosis document and its wording come from
+:mod:`dampersim.discrepancy.report`.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import hashlib
+import os
+import time
+from pathlib import Path
+from urllib.parse import quote
+
+from dampersim.discrepancy import upload
+from dampersim.discrepancy.campaign import MANIFEST, read_campaign
+from dampersim.discrepancy.diagnose import MIN_TORSIONAL_POINTS, diagnose
+from dampersim.discrepancy.drive import Runner
+from dampersim.discrepancy.report import (
+    diagnosis_document,
+    diagnosis_from_document,
+    has_point_data,
+    ranking_rows,
+    verdict_summary,
+)
+from dampersim.discrepancy.upload import CAMPAIGN_ACCEPTED, UPLOAD_ID
+from dampersim.errors import InputError
+from dampersim.parameters import default_parameters
+from dampersim.plotting import discrepancy as diagnosis_plots
+from dampersim.sweeps.cache import repo_root
+from dampersim.views.notices import notice, query_value
+from dampersim.views.store import cache_dir, cached_view, discrepancy_source_hash, view_key
+
+#: Sub-directory of the cache with the unpacked campaign uploads.
+UPLOADS_SUBDIR = "campaign-uploads"
+#: Keyword arguments of :func:`dampersim.discrepancy.diagnose.diagnose` used by the
+#: dashboard (empty: the library's defaults); part of the cache key.
+DISCREPANCY_OPTIONS: dict = {}
+#: Bumped when the content of a cached diagnosis view changes shape.
+DISCREPANCY_FORMAT = 1
+#: Default example campaign of the page (the first bundled one if it is missing).
+DEFAULT_EXAMPLE = "hidden-effect-example"
+#: Rough cost of the diagnosis [core seconds per second of torsional record], measured
+#: on the bundled example (12 points of 1 s: 69 s on 2 cores with
+#: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json``).
+DIAGNOSIS_CORE_S_PER_RECORD_S = 11.2
+#: Dropdown values of uploads: this prefix and the upload id.
+UPLOAD_PREFIX = "upload:"
+
+
+def example_campaigns_dir() -> Path:
+    """Folder of the bundled example campaigns (``examples/campaigns`` of the checkout)."""
+    return repo_root() / "examples" / "campaigns"
+
+
+def example_campaigns(root=None) -> dict:
+    """Bundled example campaigns: folder name -> path (folders holding a manifest.csv)."""
+    root = Path(root) if root is not None else example_campaigns_dir()
+    try:
+        entries = sorted(root.iterdir())
+    except OSError:
+        return {}
+    return {p.name: p for p in entries if p.is_dir() and (p / MANIFEST).is_file()}
+
+
+def default_example(examples: dict):
+    """The example a page shows first (None when nothing is bundled)."""
+    return DEFAULT_EXAMPLE if DEFAULT_EXAMPLE in examples else next(iter(examples), None)
+
+
+
+# --------------------------------------------------------------------------- uploads
+def uploads_dir() -> Path:
+    """Folder of the unpacked campaign uploads of this server (in its cache)."""
+    return cache_dir() / UPLOADS_SUBDIR
+
+
+def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
+    """A campaign zip from a browser upload -> its upload id, unpacked into
+    :func:`uploads_dir` by :func:`dampersim.discrepancy.upload.unpack_campaign_zip` (which
+    says what it refuses and why)."""
+    return upload.unpack_campaign_zip(contents, filename, uploads_dir())
+
+
+def upload_folder(upload_id):
+    """Campaign folder of an earlier upload, or None (unknown id or cleared cache)."""
+    return upload.upload_folder(uploads_dir(), upload_id)
+
+
+def upload_label(upload_id: str) -> str:
+    """Dropdown label of an upload: its file name and campaign name when known."""
+    meta = upload.upload_metadata(uploads_dir(), upload_id)
+    if meta is None:
+        return f"uploaded campaign {upload_id}"
+    return f"uploaded: {meta.get('name') or upload_id} ({meta.get('filename') or 'zip'})"
+
+
+# --------------------------------------------------------------------------- page state
+def parse_discrepancy_query(query: dict | None, examples: dict) -> tuple:
+    """The Discrepancy page's query -> ``(state, notices)``.
+
+    Keys: ``campaign`` (a bundled example's folder name) or ``upload`` (the id of a
+    campaign uploaded to this server; it wins over ``campaign``). A refused value gives a
+    notice naming the key, the value, what is accepted and what is used instead; unknown
+    keys are ignored. ``state`` = {"campaign": name or None, "upload": id or None}.
+    """
+    state, notices, _folder = _discrepancy_query(query, examples)
+    return state, notices
+
+
+def _discrepancy_query(query: dict | None, examples: dict) -> tuple:
+    """:func:`parse_discrepancy_query` plus the campaign folder it resolved (see
+    :func:`discrepancy_folder`): ``(state, notices, folder or None)``."""
+    query = dict(query or {})
+    notices: list = []
+    fallback = default_example(examples)
+    used = f"the example {fallback}" if fallback else "no campaign (upload one)"
+    state = {"campaign": fallback, "upload": None}
+    if "upload" in query:
+        raw = query_value(query, "upload", notices, "Uploaded campaign")
+        text = str(raw).strip()
+        if not UPLOAD_ID.match(text):
+            notices.append(notice(f"Uploaded campaign (upload={raw!r}) is not an upload id: accepted is the 16 hex digits "
+                                  f"the page writes into the link after an upload. Using {used}."))
+        elif (folder := upload_folder(text)) is None:
+            notices.append(notice(f"Uploaded campaign (upload={raw!r}) is not on this server (uploads live in the cache, "
+                                  f"which may have been cleared): upload the zip again. Using {used}."))
+        else:
+            return {"campaign": None, "upload": text}, notices, folder
+    if "campaign" in query:
+        raw = query_value(query, "campaign", notices, "Example campaign")
+        if isinstance(raw, str) and raw in examples:
+            state["campaign"] = raw
+        else:
+            names = ", ".join(examples) if examples else "(none bundled with this installation)"
+            notices.append(notice(f"Example campaign (campaign={raw!r}) is not a bundled example: accepted is one of {names}. "
+                                  f"Using {used}."))
+    if not examples:
+        notices.append(notice("No example campaigns are bundled with this installation: upload a campaign.", "info"))
+    return state, notices, discrepancy_folder(state, examples)
+
+
+def discrepancy_choice(value, examples: dict) -> tuple:
+    """A campaign dropdown value (example name or ``upload:<id>``) -> ``(state, notices,
+    folder)``: the state and notices of :func:`parse_discrepancy_query` and the campaign
+    folder (:func:`discrepancy_folder`, resolved once) or None."""
+    if isinstance(value, str) and value.startswith(UPLOAD_PREFIX):
+        return _discrepancy_query({"upload": value[len(UPLOAD_PREFIX):]}, examples)
+    return _discrepancy_query({"campaign": value} if value is not None else {}, examples)
+
+
+def discrepancy_value(state: dict):
+    """Dropdown value of a state (inverse of :func:`discrepancy_choice`)."""
+    return UPLOAD_PREFIX + state["upload"] if state.get("upload") else state.get("campaign")
+
+
+def discrepancy_query(state: dict) -> str:
+    """Query string (with "?") of a Discrepancy page state."""
+    if state.get("upload"):
+        return "?upload=" + quote(state["upload"], safe="")
+    if state.get("campaign"):
+        return "?campaign=" + quote(state["campaign"], safe="._-")
+    return ""
+
+
+def discrepancy_folder(state: dict, examples: dict):
+    """Campaign folder of a state, or None."""
+    if state.get("upload"):
+        return upload_folder(state["upload"])
+    path = examples.get(state.get("campaign") or "")
+    return Path(path) if path is not None else None
+
+
+def summarise_campaign(camp) -> dict:
+    """Validation report of a campaign already read (a
+    :class:`dampersim.discrepancy.campaign.Campaign`), JSON-ready: see :func:`campaign_summary`."""
+    rep = camp.report()
+    return {"name": camp.name, "description": camp.description, "rows": rep["rows"], "valid": len(camp.points),
+            "torsional": len(camp.torsional), "ramps": len(camp.ramps),
+            "record_s": float(sum(p.duration for p in camp.torsional)),
+            "problems": rep["problems"], "error": None, "ready": len(camp.torsional) >= MIN_TORSIONAL_POINTS}
+
+
+def _folder_files(folder: Path) -> tuple:
+    """((relative path, size, mtime_ns), ...) of every file under ``folder`` in a fixed
+    order: the memo key of :func:`campaign_summary` and :func:`campaign_digest`, so a
+    changed, added or removed file gives a new key."""
+    out = []
+    for sub, dirs, files in os.walk(folder):
+        dirs.sort()
+        for f in sorted(files):
+            p = Path(sub) / f
+            try:
+                st = p.stat()
+            except OSError:
+                continue  # gone since the walk
+            out.append((p.relative_to(folder).as_posix(), st.st_size, st.st_mtime_ns))
+    return tuple(out)
+
+
+def campaign_summary(folder) -> dict:
+    """Validation report of the campaign in ``folder``, JSON-ready.
+
+    {"name", "description", "rows", "valid", "torsional", "ramps", "record_s", "problems"
+    (each with file, field, point, message), "error" (a campaign that cannot be read at
+    all) and "ready" (enough valid torsional points for the diagnosis)}. Paths in messages
+    are relative to the campaign folder (the server's folders are not shown). Memoised
+    per process on the folder and the size and modification time of its files.
+    """
+    folder = Path(folder)
+    return copy.deepcopy(_campaign_summary(str(folder), _folder_files(folder)))
+
+
+@functools.lru_cache(maxsize=32)
+def _campaign_summary(folder: str, _files: tuple) -> dict:
+    folder = Path(folder)
+    try:
+        camp = read_campaign(folder)
+    except InputError as exc:
+        msg = str(exc).replace(str(folder) + os.sep, "").replace(str(folder), folder.name)
+        return {"name": folder.name, "description": "", "rows": 0, "valid": 0, "torsional": 0, "ramps": 0,
+                "record_s": 0.0, "problems": [], "error": msg, "ready": False}
+    return summarise_campaign(camp)
+
+
+def diagnosis_seconds(record_s: float, cores: int | None = None) -> float:
+    """Rough wall time [s] of diagnosing torsional records of ``record_s`` seconds in all."""
+    cores = cores or Runner(None).workers
+    return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * float(record_s) / max(1, cores)
+
+
+def campaign_digest(folder) -> str:
+    """SHA-256 of every file of a campaign folder (relative path and bytes); memoised per
+    process on the folder and the size and modification time of its files."""
+    folder = Path(folder)
+    return _campaign_digest(str(folder), _folder_files(folder))
+
+
+@functools.lru_cache(maxsize=32)
+def _campaign_digest(folder: str, files: tuple) -> str:
+    h = hashlib.sha256()
+    for rel, _size, _mtime in files:
+        h.update(rel.encode() + b"\0")
+        with open(Path(folder, rel), "rb") as fh:
+            for chunk in iter(lambda: fh.read(2**20), b""):
+                h.update(chunk)
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+
+# --------------------------------------------------------------------------- diagnosis
+def discrepancy_key(folder, system=None) -> str:
+    """Cache key of a diagnosis: campaign files, parameter set, options, code and version
+    (a :func:`view_key` of kind "discrepancy" with the code of :func:`discrepancy_source_hash`)."""
+    state = {"format": DISCREPANCY_FORMAT, "campaign": campaign_digest(folder), "options": DISCREPANCY_OPTIONS}
+    return view_key("discrepancy", system or default_parameters(), state, source=discrepancy_source_hash())
+
+
+def discrepancy_figures(doc: dict) -> dict:
+    """Figures (plain dicts) of a diagnosis document: ``gap``, ``ranking`` and, when the
+    document holds per-point data, ``map``, ``profile`` and ``overlays`` (else None)."""
+    d = diagnosis_from_document(doc)
+    gap = diagnosis_plots.gap_figure(d, None)
+    ranking = diagnosis_plots.ranking_figure(d, None)
+    out = {"gap": gap.to_dict(), "ranking": ranking.to_dict()}
+    full = has_point_data(doc)
+    out["map"] = diagnosis_plots.residual_map_figure(d, None).to_dict() if full else None
+    out["profile"] = diagnosis_plots.residual_profile_figure(d, None).to_dict() if full else None
+    out["overlays"] = diagnosis_plots.held_out_overlay_figure(d, None).to_dict() if full else None
+    return out
+
+
+def _discrepancy_view_key(folder, system=None, **_):
+    return discrepancy_key(folder, system)
+
+
+@cached_view(_discrepancy_view_key)
+def discrepancy_view(folder, progress=None, cache_only: bool = False, workers=None, system=None):
+    """The diagnosis of the campaign in ``folder`` for the page, cached.
+
+    Returns {"key", "campaign" (see :func:`campaign_summary`), "diagnosis" (see
+    :func:`dampersim.discrepancy.report.diagnosis_document`), "summary"} or, with
+    ``cache_only``, None on a miss. ``progress(fraction, text)`` is passed to the diagnosis. Raises InputError for a
+    campaign that cannot be diagnosed.
+    """
+    if cache_only:
+        return None
+    t0 = time.perf_counter()
+    camp = read_campaign(folder)
+    summary = summarise_campaign(camp)  # the campaign just read, not a second reading
+    diag = diagnose(camp, system, workers=workers, progress=progress, **DISCREPANCY_OPTIONS)
+    doc = diagnosis_document(diag)
+    return {
+        "kind": "discrepancy",
+        "campaign": summary,
+        "diagnosis": doc,
+        "summary": {"compute_time_s": time.perf_counter() - t0, "simulations": diag.simulations},
+    }
+
+
+__all__ = [
+    "UPLOADS_SUBDIR",
+    "UPLOAD_PREFIX",
+    "CAMPAIGN_ACCEPTED",
+    "DISCREPANCY_OPTIONS",
+    "MIN_TORSIONAL_POINTS",
+    "example_campaigns",
+    "default_example",
+    "uploads_dir",
+    "unpack_campaign_zip",
+    "upload_folder",
+    "upload_label",
+    "parse_discrepancy_query",
+    "discrepancy_choice",
+    "discrepancy_value",
+    "discrepancy_query",
+    "discrepancy_folder",
+    "summarise_campaign",
+    "campaign_summary",
+    "diagnosis_seconds",
+    "campaign_digest",
+    "discrepancy_key",
+    "discrepancy_figures",
+    "discrepancy_view",
+    "ranking_rows",
+    "verdict_summary",
+]
