@@ -19,7 +19,7 @@ import numpy as np
 import dampersim as ds
 from dampersim.parameters import with_updates
 from dampersim.simulation import ensure_compiled
-from dampersim.solver import _kernels as kern
+from dampersim.solver.kernels.forces import rhs
 from dampersim.solver.layout import build_layout, initial_state
 from dampersim.units import rpm_to_rad_s
 
@@ -46,7 +46,7 @@ def lsoda(system, t_end):
     def f(t, y):
         q, v, z = y[:n], y[n:2 * n], y[2 * n]
         tin = float(EXCITATION.torque(np.array([t]))[0])
-        dq, dv, dz = kern.rhs(q, v, z, tin, lay.P, lay.SF, lay.SI, lay.J, lay.rig, lay.contacts_idx,
+        dq, dv, dz = rhs(q, v, z, tin, lay.P, lay.SF, lay.SI, lay.J, lay.rig, lay.contacts_idx,
                               lay.contacts_f, lay.n_nodes)
         return np.concatenate([dq, dv, [dz]])
 

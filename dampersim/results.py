@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dampersim.solver import _kernels as kern
+from dampersim.solver import layout as kern
 from dampersim.solver.layout import Layout
 
 ANALYSIS_WINDOW = 1.25  # s, [thesis] §3.4 and §6.2.1

@@ -68,19 +68,33 @@ class OrderSum:
             fl += a * np.cos(k * self.speed * t + ph)
         return mean + env * fl
 
-    def torque_grid(self, n: int, dt: float) -> np.ndarray:
-        """:meth:`torque` at t = 0, dt, ..., (n-1) dt [s] (the integrator's grid), from one
-        compiled pass (:func:`dampersim.solver._kernels.order_sum`); equal to
-        ``torque(np.arange(n) * dt)`` to rounding, in a fraction of the time."""
-        from dampersim.solver import _kernels as kern
+    def order_spec(self) -> OrderSpec:
+        """This order sum as plain numbers and arrays, for the solver to evaluate on its
+        step grid in one compiled pass (:func:`dampersim.solver.driver.torque_grid`)."""
+        return OrderSpec(
+            speed=float(self.speed),
+            mean_torque=float(self.mean_torque),
+            mean_ramp=float(self.mean_ramp),
+            amplitude_ramp=float(self.amplitude_ramp),
+            orders=np.array([o[0] for o in self.orders], dtype=np.float64),
+            amplitudes=np.array([o[1] for o in self.orders], dtype=np.float64),
+            phases=np.array([o[2] for o in self.orders], dtype=np.float64),
+        )
 
-        out = np.empty(int(n))
-        k = np.array([o[0] for o in self.orders], dtype=np.float64)
-        a = np.array([o[1] for o in self.orders], dtype=np.float64)
-        ph = np.array([o[2] for o in self.orders], dtype=np.float64)
-        kern.order_sum(out, float(dt), float(self.speed), float(self.mean_torque), float(self.mean_ramp),
-                       float(self.amplitude_ramp), k, a, ph)
-        return out
+
+@dataclass(frozen=True, eq=False)
+class OrderSpec:
+    """The description of an :class:`OrderSum` the solver reads: speed [rad/s], mean
+    torque [N m], ramps [s], and per order its order [-], amplitude [N m] and phase [rad]
+    (float64 arrays of equal length)."""
+
+    speed: float
+    mean_torque: float
+    mean_ramp: float
+    amplitude_ramp: float
+    orders: np.ndarray
+    amplitudes: np.ndarray
+    phases: np.ndarray
 
 
 def parse_orders(text: str) -> tuple:

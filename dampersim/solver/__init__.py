@@ -1,1 +1,1 @@
-"""Solver: flattening of parameters into arrays, the numba kernel and the linearised model."""
+"""Solver: parameters flattened into arrays (layouts), the numba kernels, the driver that runs them, and the linearised model."""

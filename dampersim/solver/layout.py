@@ -1,4 +1,4 @@
-"""Flatten a :class:`DamperSystem` once into the float64/int64 arrays the kernel reads.
+"""Flatten a :class:`DamperSystem` once into the float64/int64 arrays the kernels read.
 
 Degrees of freedom (all angles in a frame turning at the nominal speed Omega0 [rad/s],
 all speeds relative to Omega0; model-spec §1):
@@ -22,6 +22,10 @@ Spring coordinates ([thesis] Eq. 16-18, model-spec §3): for a set between body 
 (before) and body B (after), a node's slot coordinate is ``x = q_A - q_node`` [rad],
 measured against the rotation from the centre of A's stopper. B's stopper sits at
 ``x = w`` with windup ``w = q_A - q_B``.
+
+The slot constants below (P_*, F_*, I_*, and the record columns R_*) are frozen into the
+compiled kernels (:mod:`dampersim.solver.kernels`), whose on-disk cache is keyed by
+this file's source too; this module imports no kernel.
 """
 
 from __future__ import annotations
@@ -88,6 +92,40 @@ I_N = 1  # segments
 I_OFF = 2  # DOF index of the first mass (node 1)
 I_NODE = 3  # offset of node 0 in the node scratch / record arrays
 NI = 4
+
+# --- record columns: one row of the integrator's record per stored sample -------------
+R_T = 0
+R_TIN = 1
+R_TOUT = 2
+R_W_PRI = 3  # absolute speeds [rad/s]
+R_W_SEC = 4
+R_W_TER = 5
+R_W_MOTOR = 6
+R_WIND_O = 7  # windup of the outer set [rad]
+R_WIND_I = 8  # windup of the inner set [rad]
+R_WIND_RIG = 9  # J_pri angle - output transducer angle [rad]
+R_HS_O = 10  # hardstop torque of the outer set [N m] (+ positive stop, - negative stop)
+R_HS_I = 11
+R_MOTOR_T = 12  # output motor torque [N m]
+R_E_IN = 13  # work of the input torque [J]
+R_E_MOTOR = 14  # work of the output motor [J]
+R_E_KIN = 15  # kinetic energy [J]
+R_E_SPRING = 16  # elastic energy (springs, shafts, hardstops) [J]
+R_E_FRIC = 17  # friction dissipation [J]
+R_E_DAMP = 18  # viscous dissipation (shafts, inertia damping, hardstop damping) [J]
+R_E_STACK = 19  # energy removed by coil-stacking contacts [J]
+R_SET_O = 20  # torque the outer set's springs pass to J_sec [N m]
+R_SET_I = 21  # torque the inner set's springs pass to J_ter [N m]
+NREC = 22
+
+# --- integrator state besides (q, v), carried from step to step (vector S) -------------
+S_Z = 0  # PI state of the output motor: minus its angle, the integral of -v_motor [rad]
+S_E_IN = 1  # work of the input torque [J]
+S_E_MOTOR = 2  # work of the output motor [J]
+S_E_FRIC = 3  # friction dissipation [J]
+S_E_DAMP = 4  # viscous dissipation [J]
+S_E_STACK = 5  # energy removed by coil-stacking contacts [J]
+S_SIZE = 6
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ import pytest
 
 from dampersim import default_parameters
 from dampersim.parameters import with_updates
-from dampersim.solver import _kernels as kern
+from dampersim.solver.kernels import forces as kern
 from dampersim.solver.layout import build_layout, initial_state
 from dampersim.units import rpm_to_rad_s
 from tests.reference.reference_model import accelerations

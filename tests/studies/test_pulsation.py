@@ -8,9 +8,9 @@ import pytest
 from dampersim.cli import main
 from dampersim.errors import InputError, ParameterError
 from dampersim.excitation.engine import engine_orders, fired_engine_torque
-from dampersim.excitation.pulsation import simulate_pulsation
+from dampersim.simulation import simulate_pulsation
 from dampersim.parameters.engine import EngineGeometry
-from dampersim.solver import _kernels as kern
+from dampersim.solver import layout as kern
 from dampersim.units import rpm_to_rad_s
 
 W1500 = rpm_to_rad_s(1500)

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from dampersim.solver import _kernels as kern
+from dampersim.solver.kernels import fastmath, friction
 from dampersim.solver import layout as L
 
 # Slip speeds [m/s]: zero, tiny (where 1 - exp would cancel), the Stribeck hump near
@@ -41,22 +41,22 @@ def test_friction_law_matches_tanh_form(g):
     scale = g[0] + g[3] + g[5] * 30
     dscale = g[0] * g[1] + g[3] * g[4] + g[5]
     for v in SLIPS:
-        mu, dmu = kern.makkar(float(v), *g)
+        mu, dmu = friction.makkar(float(v), *g)
         mu_x, dmu_x = exact(float(v), g)
         assert abs(mu - mu_x) <= 1e-13 * scale, (v, mu, mu_x)
         assert abs(dmu - dmu_x) <= 1e-13 * dscale, (v, dmu, dmu_x)
         # odd law, exactly: the sign comes from copysign
-        assert kern.makkar(-float(v), *g)[0] == -mu
+        assert friction.makkar(-float(v), *g)[0] == -mu
 
 
 def test_expm1_polynomial_relative_accuracy():
     # relative accuracy, not just absolute: near y = 0 the result is ~ -y and must keep
     # its digits there (1e-14: a few ulp after seven doublings)
     for y in np.concatenate([[1e-300, 1e-15, 1e-8], np.logspace(-6, 1.6, 300)]):
-        got = kern.expm1_neg(float(y))
+        got = fastmath.expm1_neg(float(y))
         want = math.expm1(-float(y))
         assert abs(got - want) <= 1e-14 * abs(want), (y, got, want)
-    assert kern.expm1_neg(1e6) == -1.0  # clamped: exp(-40) is below resolution next to 1
+    assert fastmath.expm1_neg(1e6) == -1.0  # clamped: exp(-40) is below resolution next to 1
 
 
 def test_contact_loop_equals_scalar_law():
@@ -73,7 +73,7 @@ def test_contact_loop_equals_scalar_law():
     npad = (nc + 7) // 8 * 8
     XS, MU, DMU = np.zeros(npad), np.zeros(npad), np.zeros(npad)
     W = np.zeros(2 * nc)
-    kern.contact_laws(v0, v0, FN, P, CI, CF, W, XS, MU, DMU)
+    friction.contact_laws(v0, v0, FN, P, CI, CF, W, XS, MU, DMU)
     for c in range(nc):
         mu, dmu = exact(float((v0[CI[c, 0]] - v0[CI[c, 1]]) * CF[c, 1]), THESIS)
         assert MU[c] == pytest.approx(mu, rel=1e-13, abs=1e-15)
