@@ -1,7 +1,7 @@
 """The engine-order input torque on the integrator's step grid, in one compiled pass.
 
 The solver builds the grid from the description an excitation hands it (orders,
-amplitudes, phases, ramps: :meth:`dampersim.excitation.OrderSum.grid_spec`) through
+amplitudes, phases, ramps: :meth:`dampersim.excitation.OrderSum.order_spec`) through
 :func:`dampersim.solver.driver.torque_grid`.
 """
 
