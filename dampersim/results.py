@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import base64
+import dataclasses
+import json
+import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from dampersim.solver import layout as kern
-from dampersim.solver.layout import Layout
+from dampersim.errors import DampersimError, InputError
+from dampersim.excitation import MeasuredTorque, OrderSum, TorqueRamp
+from dampersim.fileio import atomic_write
+from dampersim.parameters import DamperSystem, system_from_dict, to_dict
+from dampersim.signal import lowpass_first_order, order_amplitudes
+from dampersim.solver import layout as slots
+from dampersim.solver.layout import F_PHISEG, Layout, SpringInfo
+from dampersim.version import __version__
 
 ANALYSIS_WINDOW = 1.25  # s, [thesis] §3.4 and §6.2.1
 
@@ -18,7 +29,6 @@ def _transducer(tout, system, rec_dt):
     tb = getattr(getattr(system, "effects", None), "transducer_bandwidth", None)
     if tb is None or not tb.enabled or len(tout) < 2:
         return tout
-    from dampersim.signal import lowpass_first_order
 
     return lowpass_first_order(tout, 1.0 / rec_dt, tb.cutoff)
 
@@ -67,30 +77,30 @@ class SimulationResult:
     def from_records(cls, rec, seg, layout: Layout, system, excitation, dt, rec_dt, seg_dt, wall_time):
         c = rec.T
         energy = {
-            "input_work": c[kern.R_E_IN].copy(),
-            "motor_work": c[kern.R_E_MOTOR].copy(),
-            "kinetic": c[kern.R_E_KIN].copy(),
-            "elastic": c[kern.R_E_SPRING].copy(),
-            "friction": c[kern.R_E_FRIC].copy(),
-            "damping": c[kern.R_E_DAMP].copy(),
-            "stacking": c[kern.R_E_STACK].copy(),
+            "input_work": c[slots.R_E_IN].copy(),
+            "motor_work": c[slots.R_E_MOTOR].copy(),
+            "kinetic": c[slots.R_E_KIN].copy(),
+            "elastic": c[slots.R_E_SPRING].copy(),
+            "friction": c[slots.R_E_FRIC].copy(),
+            "damping": c[slots.R_E_DAMP].copy(),
+            "stacking": c[slots.R_E_STACK].copy(),
         }
         return cls(
-            t=c[kern.R_T].copy(),
-            input_torque=c[kern.R_TIN].copy(),
-            output_torque=_transducer(c[kern.R_TOUT].copy(), system, rec_dt),
-            speed_primary=c[kern.R_W_PRI].copy(),
-            speed_secondary=c[kern.R_W_SEC].copy(),
-            speed_tertiary=c[kern.R_W_TER].copy(),
-            speed_motor=c[kern.R_W_MOTOR].copy(),
-            windup_outer=c[kern.R_WIND_O].copy(),
-            windup_inner=c[kern.R_WIND_I].copy(),
-            windup_total=c[kern.R_WIND_RIG].copy(),
-            hardstop_outer=c[kern.R_HS_O].copy(),
-            hardstop_inner=c[kern.R_HS_I].copy(),
-            motor_torque=c[kern.R_MOTOR_T].copy(),
-            spring_torque_outer=c[kern.R_SET_O].copy(),
-            spring_torque_inner=c[kern.R_SET_I].copy(),
+            t=c[slots.R_T].copy(),
+            input_torque=c[slots.R_TIN].copy(),
+            output_torque=_transducer(c[slots.R_TOUT].copy(), system, rec_dt),
+            speed_primary=c[slots.R_W_PRI].copy(),
+            speed_secondary=c[slots.R_W_SEC].copy(),
+            speed_tertiary=c[slots.R_W_TER].copy(),
+            speed_motor=c[slots.R_W_MOTOR].copy(),
+            windup_outer=c[slots.R_WIND_O].copy(),
+            windup_inner=c[slots.R_WIND_I].copy(),
+            windup_total=c[slots.R_WIND_RIG].copy(),
+            hardstop_outer=c[slots.R_HS_O].copy(),
+            hardstop_inner=c[slots.R_HS_I].copy(),
+            motor_torque=c[slots.R_MOTOR_T].copy(),
+            spring_torque_outer=c[slots.R_SET_O].copy(),
+            spring_torque_inner=c[slots.R_SET_I].copy(),
             energy=energy,
             segment_t=np.arange(seg.shape[0]) * seg_dt,
             nodes=seg,
@@ -114,7 +124,6 @@ class SimulationResult:
 
     def order_amplitudes(self, orders=tuple(range(1, 9)), seconds: float = ANALYSIS_WINDOW):
         """(input, output) order amplitudes [N m] over the analysis window ([thesis] §3.4)."""
-        from dampersim.signal import order_amplitudes
 
         w = self.window(seconds)
         a_in = order_amplitudes(self.input_torque[w], self.sample_rate, self.speed, orders)
@@ -138,8 +147,6 @@ class SimulationResult:
         """Compression [rad] of each segment of spring ``name`` (relaxed arc minus arc)."""
         x = self.spring_nodes(name)
         k = [s.name for s in self.springs].index(name)
-        from dampersim.solver.layout import F_PHISEG
-
         return self.spring_rows[k, F_PHISEG] - np.diff(x, axis=1)
 
     def to_frame(self):
@@ -194,13 +201,10 @@ class SimulationResult:
         size limit of Parquet readers; :meth:`load` lifts that limit, pandas needs
         ``thrift_string_size_limit`` for such a file.
         """
-        import json
 
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        from dampersim.errors import InputError
-        from dampersim.fileio import atomic_write
 
         frame = self.to_frame()
         columns = {}
@@ -231,7 +235,6 @@ class SimulationResult:
             "parameters": _parameters_to_dict(self.parameters),
             "excitation": _excitation_to_dict(self.excitation),
         }
-        from dampersim.version import __version__
 
         header["dampersim_version"] = __version__
         text = json.dumps(_to_json(header), allow_nan=False, separators=(",", ":"))
@@ -248,11 +251,9 @@ class SimulationResult:
         InputError naming the file and what is accepted; a Parquet file without the
         ``dampersim.result`` metadata (e.g. from an older ``simulate --out``) holds only
         the time series, which ``pandas.read_parquet`` reads."""
-        import os
 
         import pyarrow.parquet as pq
 
-        from dampersim.errors import InputError
 
         shown = os.fspath(path)
         accepted = (f"accepted is a Parquet file written by SimulationResult.save "
@@ -279,9 +280,7 @@ class SimulationResult:
     def _from_parquet(cls, pf, meta, bad):
         """The result in an open ``pyarrow.parquet.ParquetFile`` with schema metadata
         ``meta``; ``bad(what)`` makes the InputError naming the file."""
-        import json
 
-        from dampersim.errors import DampersimError
 
         if _META_KEY not in meta:
             raise bad("has no dampersim.result metadata (only a plain table, e.g. from an older simulate --out)")
@@ -381,10 +380,7 @@ def _to_json(obj):
     """``obj`` as strict-JSON values: numpy arrays as {"$array": {dtype, shape, base64}}
     (little-endian, bit-exact), non-finite floats as {"$float": "nan" | "inf" | "-inf"},
     tuples as lists; floats keep their repr, which reads back to the same double."""
-    import base64
-    import math
 
-    from dampersim.errors import InputError
 
     if isinstance(obj, dict):
         return {str(k): _to_json(v) for k, v in obj.items()}
@@ -407,7 +403,6 @@ def _to_json(obj):
 
 def _from_json(obj):
     """Inverse of :func:`_to_json` (lists stay lists)."""
-    import base64
 
     if isinstance(obj, list):
         return [_from_json(v) for v in obj]
@@ -452,20 +447,15 @@ def _array(value, name, ndim) -> np.ndarray:
 
 
 def _spring_to_dict(spring) -> dict:
-    import dataclasses
 
     return {f.name: getattr(spring, f.name) for f in dataclasses.fields(spring)}
 
 
 def _spring_from_dict(d):
-    from dampersim.solver.layout import SpringInfo
-
     return SpringInfo(**d)
 
 
 def _parameters_to_dict(parameters):
-    from dampersim.errors import InputError
-    from dampersim.parameters import DamperSystem, to_dict
 
     if parameters is None:
         return None
@@ -475,13 +465,11 @@ def _parameters_to_dict(parameters):
 
 
 def _parameters_from_dict(data):
-    from dampersim.parameters import system_from_dict
 
     return None if data is None else system_from_dict(data)
 
 
 def _excitation_classes() -> dict:
-    from dampersim.excitation import MeasuredTorque, OrderSum, TorqueRamp
 
     return {c.__name__: c for c in (OrderSum, TorqueRamp, MeasuredTorque)}
 
@@ -489,8 +477,6 @@ def _excitation_classes() -> dict:
 def _excitation_to_dict(excitation):
     """The excitation's fields under its class name when :meth:`SimulationResult.load`
     can rebuild it, else an :class:`ExcitationDescription`'s fields."""
-    import dataclasses
-    import math
 
     if excitation is None:
         return None

@@ -2,7 +2,7 @@
 
 Each effect is a frozen dataclass in ``DamperSystem.effects`` (see
 :mod:`dampersim.parameters.model`), off by default, with its own parameters, units and
-bounds; the kernel implements it (:mod:`dampersim.solver._kernels`, "optional effects").
+bounds; the kernel implements it (:mod:`dampersim.solver.kernels.effects`).
 This module holds what an engineer needs to judge a candidate: the physical cause, the
 signature it leaves in measurements, and which parameter sets its magnitude (the one
 the diagnosis fits).

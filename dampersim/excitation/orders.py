@@ -1,4 +1,4 @@
-"""Engine-order excitation with the start-up of [thesis] §6.2.1 (model-spec §7)."""
+"""Engine-order excitation with the start-up of [thesis] §6.2.1 (docs/model.md §7)."""
 
 from __future__ import annotations
 

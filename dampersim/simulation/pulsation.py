@@ -3,7 +3,7 @@
 :func:`simulate_pulsation` integrates the generator's chain (input dyno, coupling, four
 flexible crank sections with their cylinders, flange, transducer) either alone on a
 torsionally stiff propshaft to a held output dyno ([thesis] §4.3.1, "pulsation generator
-only" tests) or coupled to the damper and rig (model-spec §2, the rig mode of [thesis]
+only" tests) or coupled to the damper and rig (docs/model.md §2, the rig mode of [thesis]
 §4.2). Coupled, the transducer's shaft drives J_pri of the full nonlinear damper model
 (arc-spring segments, friction, hardstops, the rig's output chain with its PI output
 motor): one kernel marches the generator and the damper with the same step, so the

@@ -1,6 +1,6 @@
 """Flatten a :class:`PulsationGenerator` into the arrays the generator kernels read.
 
-Chain DOFs (angles relative to a frame turning at the nominal speed, model-spec §1), in
+Chain DOFs (angles relative to a frame turning at the nominal speed, docs/model.md §1), in
 power-flow order: input dyno, ROBA coupling, crank sections 1-4, flange, transducer.
 Cylinders 1-4 sit on crank sections 1-4 with throws at 0, 180, 180 and 0 deg
 (inline four); each compresses once per revolution (valves deactivated, [thesis] §4.1).
@@ -9,7 +9,7 @@ The shaft leaving the transducer (PE slots E_KLINK, E_BLINK) is either the torsi
 stiff propshaft to a held output dyno (``kernels.engine.engine_integrate``, [thesis]
 §4.3.1) or, coupled, the transducer shaft into J_pri of the full nonlinear damper and
 rig (``kernels.integrate.integrate`` marches both; the rig mode of [thesis] §4.2,
-model-spec §2).
+docs/model.md §2).
 
 The slot constants below (E_*, the record columns ER_* and the step outputs EO_*) are
 frozen into the compiled kernels (:mod:`dampersim.solver.kernels`), whose on-disk

@@ -1,7 +1,7 @@
 """Flatten a :class:`DamperSystem` once into the float64/int64 arrays the kernels read.
 
 Degrees of freedom (all angles in a frame turning at the nominal speed Omega0 [rad/s],
-all speeds relative to Omega0; model-spec §1):
+all speeds relative to Omega0; docs/model.md §1):
 
 ====================  =========================================================
 index                 body
@@ -18,7 +18,7 @@ Each integrated spring stands for ``count`` identical springs: its masses carry
 ``count`` times one spring's inertia and all its forces are ``count`` times one
 spring's, so the bodies receive the whole set's torque and momentum is conserved.
 
-Spring coordinates ([thesis] Eq. 16-18, model-spec §3): for a set between body A
+Spring coordinates ([thesis] Eq. 16-18, docs/model.md §3): for a set between body A
 (before) and body B (after), a node's slot coordinate is ``x = q_A - q_node`` [rad],
 measured against the rotation from the centre of A's stopper. B's stopper sits at
 ``x = w`` with windup ``w = q_A - q_B``.

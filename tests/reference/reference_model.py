@@ -1,4 +1,4 @@
-"""A slow, readable NumPy reference of the damper equations (model-spec §2-6).
+"""A slow, readable NumPy reference of the damper equations (docs/model.md §2-6).
 
 It is written from the specification, not from the kernel: objects and plain loops, no
 numba, no flattened tables. The kernel's right-hand side must agree with it.
@@ -52,7 +52,7 @@ class Spring:
         return x
 
     def segment_torques(self, q):
-        """Torque of each segment, positive in compression (model-spec §3)."""
+        """Torque of each segment, positive in compression (docs/model.md §3)."""
         x = self.nodes(q)
         return self.k_seg * (self.phi_seg - np.diff(x)), np.diff(x)
 

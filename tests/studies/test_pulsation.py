@@ -1,4 +1,4 @@
-"""Pulsation generator ([thesis] chapter 4, model-spec §8) and the fired engine source."""
+"""Pulsation generator ([thesis] chapter 4, docs/model.md §8) and the fired engine source."""
 
 import json
 

@@ -1,7 +1,7 @@
 """Contacts between bodies and spring masses: hardstops and coil stacking.
 
 - hardstops as a stiff, damped, one-sided contact on each set's windup (we differ from
-  the thesis's inertia merge, [thesis] Eq. 30-33, see model-spec §6); the stiffness acts
+  the thesis's inertia merge, [thesis] Eq. 30-33, see docs/model.md §6); the stiffness acts
   explicitly, the damping implicitly inside the friction solve
   (:func:`dampersim.solver.kernels.friction.friction_step`);
 - coil stacking as a momentum-conserving contact (position projection + inelastic

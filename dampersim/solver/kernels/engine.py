@@ -1,4 +1,4 @@
-"""The pulsation generator (motored engine) chain: [thesis] chapter 4, model-spec §8.
+"""The pulsation generator (motored engine) chain: [thesis] chapter 4, docs/model.md §8.
 
 One step of the chain is :func:`engine_step`; :func:`engine_integrate` marches it alone
 on a stiff propshaft, :func:`dampersim.solver.kernels.integrate.integrate` marches it
@@ -74,7 +74,7 @@ def crank_slider(th, r, L):
 
 @njit(inline="always", **JIT)
 def cylinder_pressure(s, PE):
-    """Polytropic air-spring pressure P = P_c (V_BDC / V)^gamma [Pa] (model-spec §8: the
+    """Polytropic air-spring pressure P = P_c (V_BDC / V)^gamma [Pa] (docs/model.md §8: the
     physical form; the thesis's Eq. 1 and 3 are misprinted)."""
     vol = PE[E_VC] + PE[E_AREA] * s
     return PE[E_PC] * (PE[E_VBDC] / vol) ** PE[E_GAMMA]

@@ -17,7 +17,7 @@ ORDER_SUM_RESYNC = 32  # samples between exact cos/sin evaluations in order_sum
 @njit(**LEAF)
 def order_sum(out, dt, speed, mean, mean_ramp, amplitude_ramp, K, A, PH):
     """T_in(n dt) for n = 0 .. len(out)-1 into ``out`` [N m]: the order sum of
-    :class:`dampersim.excitation.OrderSum` (model-spec §7, [thesis] §6.2.1) on the
+    :class:`dampersim.excitation.OrderSum` (docs/model.md §7, [thesis] §6.2.1) on the
     integrator's grid. speed [rad/s], mean [N m], ramps [s]; order k (K[k] [-]) has
     amplitude A[k] [N m] and phase PH[k] [rad].
 

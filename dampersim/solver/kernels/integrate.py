@@ -232,7 +232,7 @@ def integrate(q, v, torque, P, SF, SI, J, RIG, CI, CF, SG, PG, n_nodes, rec_ever
     coordinates of all spring nodes). Returns (status, step): status 0 = finished,
     1 = NaN, 2 = runaway speed, 3 = windup far beyond a hardstop.
 
-    Pulsation generator input ([thesis] §4.2-4.3, model-spec §2 "optional input chain"),
+    Pulsation generator input ([thesis] §4.2-4.3, docs/model.md §2 "optional input chain"),
     on when ``gq`` is not empty (else pass the driver's no-generator placeholders): the
     generator chain (state gq, gv; arrays PE, CH, CYL of
     :mod:`dampersim.solver.engine_layout`, whose step PE[E_DT] must equal P[P_DT]) is
