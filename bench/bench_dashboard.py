@@ -137,7 +137,7 @@ def main(argv=None) -> int:
         import app as app_module  # noqa: E402  (sets the numba threading layer first)
         from dampersim import views
         from dampersim.simulation import ensure_compiled
-        from dampersim.sweeps.executor import cpu_count
+        from dampersim.sweeps.backends import cpu_count
 
         t_import = time.perf_counter() - t0
         t_compile = ensure_compiled()

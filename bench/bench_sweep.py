@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     from dampersim import default_parameters
     from dampersim.simulation import ensure_compiled
     from dampersim.sweeps import ResultCache, make_grid, parse_range, run_sweep
-    from dampersim.sweeps.executor import cpu_count
+    from dampersim.sweeps.backends import cpu_count
 
     system = default_parameters()
     points = make_grid(parse_range(args.speeds), [args.torque], args.orders)

@@ -24,6 +24,7 @@ import pandas as pd
 from dampersim.signal import DEFAULT_ORDERS, amplitude_spectrum
 from dampersim.errors import InputError
 from dampersim.units import rad_s_to_rpm
+from dampersim.analysis.metrics import magnification_ratio
 
 #: Columns of a sweep table (SI plus rpm for display).
 SWEEP_COLUMNS = (
@@ -77,7 +78,6 @@ def sweep_table(speeds_rad_s, mean_torques_nm, input_amplitudes_nm, output_ampli
     Returns:
         DataFrame with :data:`SWEEP_COLUMNS`, one row per point and order.
     """
-    from dampersim.analysis.metrics import magnification_ratio
 
     w = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
     tq = np.broadcast_to(np.asarray(mean_torques_nm, dtype=float), w.shape)

@@ -26,6 +26,9 @@ import numpy as np
 from dampersim.errors import InputError
 from dampersim.signal import LOWPASS_CUTOFF_HZ, lowpass_first_order
 from dampersim.units import rad_s_to_rpm, rad_to_deg
+from dampersim.excitation.ramps import TorqueRamp, ramp_protocol
+from dampersim.parameters import with_updates
+from dampersim.simulation import simulate
 
 #: Sample rate [Hz] used by run_loops unless the parameter set asks for another one:
 #: a 50 N m/s ramp has no content near 500 Hz, and 1 kHz keeps 30 s loops small.
@@ -136,7 +139,6 @@ class HysteresisLoop:
 
 
 def _ramp(protocol, speed_rad_s, rate, hold):
-    from dampersim.excitation.ramps import TorqueRamp, ramp_protocol
 
     if isinstance(protocol, str):
         return protocol, ramp_protocol(protocol, speed_rad_s, rate=rate, hold=hold)
@@ -176,8 +178,6 @@ def run_loops(
     Returns:
         List of :class:`HysteresisLoop`, one per speed, in the given order.
     """
-    from dampersim.parameters import with_updates
-    from dampersim.simulation import simulate
 
     speeds = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
     if speeds.size == 0 or not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
@@ -557,12 +557,9 @@ def analyse_loop(loop: HysteresisLoop, system=None, min_ratio: float = DEFAULT_K
 
 
 __all__ = [
-    "LOWPASS_CUTOFF_HZ",
     "HysteresisLoop",
     "Knee",
     "LoopAnalysis",
-    "lowpass_coefficients",
-    "lowpass_first_order",
     "run_loops",
     "branch_directions",
     "branch_labels",

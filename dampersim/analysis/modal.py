@@ -22,6 +22,7 @@ import pandas as pd
 
 from dampersim.errors import InputError
 from dampersim.units import rad_s_to_rpm, rpm_to_rad_s
+from dampersim.solver.linear import linearise
 
 #: Orders drawn by default: the first eight, as the Peakfinder reads ([thesis] §3.4).
 DEFAULT_ORDERS = tuple(range(1, 9))
@@ -128,7 +129,6 @@ def modal_analysis(system, motor: str = "free") -> ModalResult:
     ``motor``: "free" (output motor inertia free: one rigid-body mode at 0 Hz) or "held"
     (speed held exactly: the motor is ground), see :func:`dampersim.solver.linear.linearise`.
     """
-    from dampersim.solver.linear import linearise
 
     if motor not in ("free", "held"):
         raise InputError(f"motor {motor!r}: accepted is 'free' or 'held'")

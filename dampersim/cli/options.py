@@ -14,6 +14,8 @@ from __future__ import annotations
 import os
 
 from dampersim.errors import InputError
+from dampersim.parameters import load_parameters
+from dampersim.solver.linear import check_time_step
 
 #: Shaft speeds [rpm] the commands accept.
 MIN_RPM, MAX_RPM = 300.0, 6000.0
@@ -62,10 +64,9 @@ def parameter_updates(args) -> dict:
 
 def parameters_from_args(args):
     """The validated parameter set of ``--params`` (default: the built-in damper) with
-    :func:`parameter_updates` applied."""
-    from dampersim.parameters import load_parameters
-
-    return load_parameters(getattr(args, "params", None), parameter_updates(args))
+    :func:`parameter_updates` applied, its time step checked against the solver's
+    stability bound."""
+    return check_time_step(load_parameters(getattr(args, "params", None), parameter_updates(args)))
 
 
 def prepare_output(path, kind="file", option="--out") -> str:

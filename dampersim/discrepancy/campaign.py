@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dampersim.errors import InputError
+from dampersim.fileio import write_parquet_atomic, write_text_atomic
 
 MANIFEST = "manifest.csv"
 MANIFEST_COLUMNS = ("id", "kind", "speed_rpm", "mean_torque_nm", "file", "sample_rate_hz")
@@ -322,7 +323,6 @@ def write_campaign(path, points, name: str = "", description: str = "", fmt: str
     """
     import pandas as pd
 
-    from dampersim.fileio import write_parquet_atomic, write_text_atomic
 
     if fmt not in ("parquet", "csv"):
         raise InputError(f"format {fmt!r}: accepted is parquet or csv")

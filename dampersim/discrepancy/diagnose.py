@@ -17,6 +17,8 @@ import numpy as np
 from dampersim.discrepancy import drive
 from dampersim.discrepancy.effects import EFFECTS, NAMES, info, parameters_of, with_effect
 from dampersim.errors import InputError
+from dampersim.parameters import default_parameters, with_updates
+from dampersim.parameters.io import flat_values
 
 #: fewest valid torsional test points a diagnosis accepts (every third is held out)
 MIN_TORSIONAL_POINTS = 3
@@ -96,8 +98,6 @@ def _rms(x) -> float:
 
 def calibrated_system(system, x: np.ndarray):
     """``system`` with the calibration factors exp(x) applied."""
-    from dampersim.parameters import with_updates
-    from dampersim.parameters.io import flat_values
 
     flat = flat_values(system)
     upd = {}
@@ -110,7 +110,6 @@ def calibrated_system(system, x: np.ndarray):
 
 def coarse_system(system):
     """``system`` with the spring segment counts scaled by COARSE_SEGMENTS (at least 4)."""
-    from dampersim.parameters import with_updates
 
     so = system.solver
     return with_updates(system, {
@@ -197,7 +196,6 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     system: the parameter set to diagnose (default set if None); progress(fraction, text)
     is called between steps; candidates: effect names to consider (default all).
     """
-    from dampersim.parameters import default_parameters
 
     t0 = time.perf_counter()
     system = system or default_parameters()

@@ -1,7 +1,7 @@
 """Drive a parameter set with measured test points (the compare step's simulations).
 
 Task functions are module level and take plain picklable arguments so they run in the
-sweeps' process pool (:func:`dampersim.sweeps.executor.process_pool`).
+sweeps' process pool (:func:`dampersim.sweeps.backends.process_pool`).
 """
 
 from __future__ import annotations
@@ -14,6 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dampersim.signal import order_amplitudes
+from dampersim.excitation import MeasuredTorque
+from dampersim.signal import lowpass_first_order
+from dampersim.simulation import simulate
+from dampersim.solver.linear import max_stable_time_step
+from dampersim.sweeps.backends import process_pool
 
 ORDERS = tuple(float(k) for k in range(1, 9))
 RAMP_FILTER_HZ = 10.0  # [thesis] §3.4: loops low-passed at 10 Hz
@@ -46,7 +51,6 @@ def diagnosis_system(system):
     (4e-5 s was tried) left 1-3 % integration error on the excited orders at high speed
     and torque, a systematic gap of the order of the noise floor that no effect explains.
     """
-    from dampersim.solver.linear import max_stable_time_step
 
     dt = min(system.solver.time_step, 0.98 * max_stable_time_step(system))
     return dataclasses.replace(system, solver=dataclasses.replace(system.solver, time_step=dt))
@@ -88,8 +92,6 @@ def simulate_point(system, point) -> dict:
     torsional: {"orders": output order amplitudes [N m] over the record's length};
     ramp: {"torque", "windup"} on the record's time base (windup [rad]).
     """
-    from dampersim.excitation import MeasuredTorque
-    from dampersim.simulation import simulate
 
     if point.kind == "torsional":
         ex = MeasuredTorque(point.speed, point.time, point.input_torque)
@@ -121,7 +123,6 @@ class Runner:
 
     def __enter__(self):
         if self.workers > 1:
-            from dampersim.sweeps.executor import process_pool
 
             self._pool = process_pool(self.workers)
         return self
@@ -141,7 +142,6 @@ class Runner:
 
 def windup_error_deg(sim_windup, point) -> float:
     """RMS difference [deg] of the 10 Hz low-passed simulated and measured windup."""
-    from dampersim.signal import lowpass_first_order
 
     fs = point.sample_rate_hz
     a = lowpass_first_order(sim_windup, fs, min(RAMP_FILTER_HZ, 0.45 * fs))

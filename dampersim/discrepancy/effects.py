@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from dampersim.errors import InputError
 from dampersim.parameters import model as m
+from dampersim.parameters import with_updates
 
 
 @dataclass(frozen=True)
@@ -197,7 +198,6 @@ def parse_effect_spec(text: str) -> tuple[str, dict]:
 
 def with_effect(system, name: str, values: dict | None = None, enabled: bool = True):
     """``system`` with effect ``name`` switched on (or off) and its parameters set."""
-    from dampersim.parameters import with_updates
 
     info(name)
     updates = {f"effects.{name}.enabled": enabled}

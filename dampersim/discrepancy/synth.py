@@ -20,6 +20,12 @@ from dampersim.discrepancy.campaign import MeasuredPoint, write_campaign
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.errors import InputError
 from dampersim.units import rpm_to_rad_s
+from dampersim.excitation import default_torque_curve, ramp_protocol
+from dampersim.fileio import write_text_atomic
+from dampersim.parameters import default_parameters, to_dict, with_updates
+from dampersim.parameters.io import flat_values
+from dampersim.simulation import simulate
+from dampersim.sweeps.backends import process_pool
 
 CAMPAIGNS = ("torque-curve", "mapping", "hysteresis", "all")
 TORQUE_CURVE_RPM = (1200, 1400, 1600, 1800, 2000, 2200, 2400, 2600, 2800)
@@ -85,7 +91,6 @@ def plan(campaign: str = "all") -> list:
     """Test points [(id, kind, rpm, mean N m)] of a synthetic campaign."""
     if campaign not in CAMPAIGNS:
         raise InputError(f"--campaign {campaign!r}: accepted is one of {', '.join(CAMPAIGNS)}")
-    from dampersim.excitation import default_torque_curve
 
     pts = []
     if campaign in ("torque-curve", "all"):
@@ -106,8 +111,6 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
     """The truth model: ``base`` with estimated parameters scaled by 1 + U(-perturb, perturb),
     explicit ``updates`` (dotted name -> value), hidden ``effects`` [(name, values)] and, with
     ``fine``, finer springs and a smaller step. Returns (system, applied dotted values)."""
-    from dampersim.parameters import with_updates
-    from dampersim.parameters.io import flat_values
 
     rng = rng or np.random.default_rng(0)
     applied = {}
@@ -130,8 +133,6 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
 
 def _simulate_truth(args):
     system, pid, kind, rpm, tq, seed, record, fs, noise, gains = args
-    from dampersim.excitation import ramp_protocol
-    from dampersim.simulation import simulate
 
     rng = np.random.default_rng(seed)
     speed = rpm_to_rad_s(rpm)
@@ -174,7 +175,6 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
     gain_error: RMS relative gain error of each torque channel; points: optional subset of
     :func:`plan` ids.
     """
-    from dampersim.parameters import default_parameters, to_dict
 
     if truth is not None:
         a, b = os.path.abspath(out), os.path.abspath(truth)
@@ -198,7 +198,6 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
         fs = sample_rate if kind == "torsional" else ramp_sample_rate
         tasks.append((system, pid, kind, rpm, tq, seed * 1000 + i, record, fs, noise, gains))
     if workers > 1 and len(tasks) > 1:
-        from dampersim.sweeps.executor import process_pool
 
         with process_pool(workers) as pool:
             measured = list(pool.map(_simulate_truth, tasks))
@@ -217,7 +216,6 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
         "points": [p[0] for p in pts],
     }
     if truth is not None:
-        from dampersim.fileio import write_text_atomic
 
         write_text_atomic(truth, json.dumps(doc, indent=2))
     return doc

@@ -23,6 +23,8 @@ import numpy as np
 
 from dampersim.errors import InputError
 from dampersim.parameters.engine import FiredEngine
+from dampersim.excitation.orders import OrderSum
+from dampersim.excitation.torque_curve import default_torque_curve
 
 N_CYCLE = 1440  # crank-angle samples per 720 deg cycle
 ORDERS = tuple(0.5 * k for k in range(1, 17))
@@ -120,7 +122,6 @@ def fired_engine_excitation(speed: float, mean_torque: float, engine: FiredEngin
                             min_amplitude: float = 0.5):
     """OrderSum of the fired engine at ``speed`` [rad/s] and ``mean_torque`` [N m]
     (orders below ``min_amplitude`` N m dropped)."""
-    from dampersim.excitation.orders import OrderSum
 
     content = [o for o in engine_orders(speed, mean_torque, engine, orders) if o[1] >= min_amplitude]
     return OrderSum(speed=speed, mean_torque=mean_torque, orders=tuple(content))
@@ -129,7 +130,6 @@ def fired_engine_excitation(speed: float, mean_torque: float, engine: FiredEngin
 def wot_campaign(n: int = 17, curve=None, engine: FiredEngine | None = None):
     """Fired-engine OrderSums along the WOT torque curve (default 1200-2800 rpm, 100 rpm
     steps): the "full campaign" the mapping study predicts ([thesis] §7.1.3)."""
-    from dampersim.excitation.torque_curve import default_torque_curve
 
     curve = curve or default_torque_curve()
     w, tq = curve.sample(n)

@@ -26,11 +26,11 @@ from dampersim.parameters.io import (
 )
 from dampersim.parameters.validation import validate
 from dampersim.parameters.sets import DEFAULT_SET, SETS
+from dampersim.errors import ParameterError
 
 
 def default_parameters(name: str = DEFAULT_SET) -> DamperSystem:
     """The named parameter set (default: the thesis's turbine damper on the test rig)."""
-    from dampersim.errors import ParameterError
 
     if name not in SETS:
         raise ParameterError("parameter set", name, f"one of {sorted(SETS)}")

@@ -17,6 +17,7 @@ import tomli_w
 from dampersim.errors import ParameterError
 from dampersim.parameters import model as m
 from dampersim.parameters.validation import validate
+from dampersim.fileio import write_text_atomic
 
 # dataclass type of each nested field that holds a dataclass
 _NESTED = {
@@ -165,7 +166,6 @@ def loads_toml(text: str) -> m.DamperSystem:
 
 def save_toml(system: m.DamperSystem, path) -> None:
     """Write ``system`` to ``path`` atomically (temporary file + rename)."""
-    from dampersim.fileio import write_text_atomic
 
     write_text_atomic(path, dumps_toml(system))
 

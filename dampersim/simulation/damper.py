@@ -13,21 +13,22 @@ from dampersim.parameters.validation import validate
 from dampersim.results import SimulationResult
 from dampersim.solver.driver import input_torque, run_damper
 from dampersim.solver.layout import build_layout
+from dampersim.solver.linear import check_time_step
 
 
 @functools.lru_cache(maxsize=32)
 def _validated(system: DamperSystem) -> bool:
-    validate(system)
+    check_time_step(validate(system))
     return True
 
 
 def _validate_once(system: DamperSystem) -> None:
-    """validate(), remembered per parameter set: a sweep simulates one frozen set many
-    times, and the check (with its eigenvalue stability bound) costs about 1.5 ms."""
+    """validate() and the solver's stability check, remembered per parameter set: a sweep
+    simulates one frozen set many times, and the eigenvalue bound costs about 1.5 ms."""
     try:
         _validated(system)
     except TypeError:  # an unhashable value inside: validate() names it, or it is fine
-        validate(system)
+        check_time_step(validate(system))
 
 
 def natural_duration(excitation, solver: Solver) -> float:

@@ -44,6 +44,13 @@ from dampersim.solver.engine_layout import (
     build_engine_layout,
 )
 from dampersim.units import rad_s_to_rpm, rpm_to_rad_s
+from dampersim.errors import ParameterError
+from dampersim.excitation.measured import MeasuredTorque
+from dampersim.parameters import default_parameters
+from dampersim.parameters.validation import validate
+from dampersim.signal import order_amplitudes
+from dampersim.solver.layout import build_layout
+from dampersim.solver.linear import check_time_step
 
 DEFAULT_ORDERS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)
 ANALYSIS_WINDOW = 1.25
@@ -78,7 +85,6 @@ class PulsationResult:
         return slice(max(0, len(self.t) - n), len(self.t))
 
     def order_amplitudes(self, orders=DEFAULT_ORDERS, which="output", seconds=ANALYSIS_WINDOW) -> np.ndarray:
-        from dampersim.signal import order_amplitudes
 
         x = {"output": self.output_torque, "damper_output": self.damper_output_torque, "gas": self.gas_torque}[which]
         return np.asarray(order_amplitudes(x[self.window(seconds)], self.sample_rate, self.speed, orders))
@@ -172,9 +178,6 @@ def _run_coupled(system, speed, time_step, sample_rate, nsteps, rec_every, gen: 
     """March the generator ``gen`` coupled to the full damper model with the common step
     ``time_step`` [s]; returns the damper's record and the wall time [s] (compilation
     excluded)."""
-    from dampersim.parameters import default_parameters
-    from dampersim.parameters.validation import validate
-    from dampersim.solver.layout import build_layout
 
     sysm = system if system is not None else default_parameters()
     _refuse_incompatible_effects(sysm)
@@ -184,7 +187,7 @@ def _run_coupled(system, speed, time_step, sample_rate, nsteps, rec_every, gen: 
         print(f"warning: solver.time_step = {own:g} s is replaced by the coupled run's common step "
               f"{time_step:g} s (the generator's)", file=sys.stderr)
     sysm = replace(sysm, solver=replace(sysm.solver, time_step=time_step, output_sample_rate=sample_rate))
-    validate(sysm)
+    check_time_step(validate(sysm))
     dl = build_layout(sysm, speed)
     run = run_damper(dl, np.zeros(nsteps), rec_every, gen.rec.shape[0], seg_every=nsteps + 1, nseg=0, generator=gen)
     return run.rec, run.wall_time
@@ -193,7 +196,6 @@ def _run_coupled(system, speed, time_step, sample_rate, nsteps, rec_every, gen: 
 def _refuse_incompatible_effects(system) -> None:
     """The coupled mode owns the input side of J_pri: it cannot be combined with an
     effect that moves the input torque elsewhere (lock-up clutch slip)."""
-    from dampersim.errors import ParameterError
 
     effects = getattr(system, "effects", None)
     slip = getattr(effects, "clutch_slip", None) if effects is not None else None
@@ -205,7 +207,6 @@ def _refuse_incompatible_effects(system) -> None:
 
 def pulsation_excitation(result: PulsationResult):
     """The generator's steady output torque as a MeasuredTorque drive for :func:`simulate`."""
-    from dampersim.excitation.measured import MeasuredTorque
 
     sel = result.t >= result.t[-1] - 2.0 + 1e-12
     return MeasuredTorque(speed=result.speed, time=result.t[sel], torque_samples=result.output_torque[sel])

@@ -22,6 +22,8 @@ from dampersim.solver.kernels.engine import engine_integrate
 from dampersim.solver.kernels.excitation import order_sum
 from dampersim.solver.kernels.integrate import integrate
 from dampersim.solver.layout import NREC, P_DT, Layout, initial_state
+from dampersim.parameters import default_parameters
+from dampersim.solver.layout import build_layout
 
 #: status codes of the integrators -> what diverged
 STATUS = {1: "NaN in the state", 2: "runaway speed", 3: "windup far beyond a hardstop"}
@@ -76,8 +78,6 @@ def ensure_compiled(lay: Layout | None = None) -> float:
         return 0.0
     t0 = time.perf_counter()
     if lay is None:
-        from dampersim.parameters import default_parameters
-        from dampersim.solver.layout import build_layout
 
         lay = build_layout(default_parameters(), 100.0)
     q, v = initial_state(lay)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dampersim.errors import InputError, ParameterError
 from dampersim.parameters.model import DamperSystem
 from dampersim.solver.layout import F_COUNT, F_KSEG, I_A, I_N, I_OFF, P_MOTOR, P_PA_C, P_PA_DOF, P_PA_K, P_RIG0, P_TD_C, build_layout
 
@@ -138,8 +139,6 @@ def linearise(system: DamperSystem, motor: str = "free") -> LinearModel:
     """Export M, C, K of ``system``; ``motor`` 'free' (no speed control) or 'held'
     (the output motor DOF removed: its shaft ends on ground)."""
     if motor not in ("free", "held"):
-        from dampersim.errors import InputError
-
         raise InputError(f"output motor = {motor!r}: accepted is 'free' or 'held'")
     lay, M, C, K = _assemble(system)
     names = list(lay.dof_names)
@@ -181,3 +180,20 @@ def max_stable_time_step(system: DamperSystem) -> float:
     if cmax > 0:
         dt = min(dt, 1.0 / cmax)
     return dt
+
+
+def check_time_step(system: DamperSystem) -> DamperSystem:
+    """Raise ParameterError naming ``solver.time_step`` when the step [s] exceeds
+    :func:`max_stable_time_step` of this parameter set; return ``system`` otherwise.
+
+    The bound depends on the discretisation (segment counts, contact stiffness), so it is
+    the solver's check, made after :func:`dampersim.parameters.validate`.
+    """
+    dt_max = max_stable_time_step(system)
+    if system.solver.time_step > dt_max:
+        raise ParameterError(
+            "solver.time_step",
+            system.solver.time_step,
+            f"a step at or below the stability bound {dt_max:.3g} s of this parameter set",
+        )
+    return system

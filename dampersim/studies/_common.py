@@ -12,7 +12,8 @@ import numpy as np
 from dampersim.errors import InputError
 from dampersim import keys
 from dampersim.sweeps.cache import cache_dir, key_parts
-from dampersim.sweeps.executor import SweepCancelled, cpu_count, process_pool, run_sweep
+from dampersim.sweeps.backends import cpu_count, process_pool
+from dampersim.sweeps.executor import SweepCancelled, run_sweep
 from dampersim.sweeps.grid import TestPoint
 from dampersim.units import rpm_to_rad_s
 

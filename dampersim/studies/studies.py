@@ -31,13 +31,21 @@ from dampersim.studies._common import (
     warn_speeds,
 )
 from dampersim.units import rad_s_to_rpm, rpm_to_rad_s
+from dampersim.analysis.maps import magnification_map, predict_along_curve
+from dampersim.errors import InputError
+from dampersim.excitation import OrderSum
+from dampersim.excitation.engine import engine_orders
+from dampersim.excitation.torque_curve import default_torque_curve
+from dampersim.parameters import default_parameters, with_updates
+from dampersim.parameters.io import to_dict
+from dampersim.signal import order_amplitudes
+from dampersim.simulation import simulate
 
 PRIMARY = (2.0, 4.0, 6.0)
 
 
 def _default(system):
     if system is None:
-        from dampersim.parameters import default_parameters
 
         return default_parameters()
     return system
@@ -47,8 +55,6 @@ def _default(system):
 def order_rule(system=None, quick=False, executor="processes", progress=None, cancel=None):
     """Replicate a fired-engine signal with its 1, 2, 3, ... dominant orders and report
     each primary order's MR change against the full signal ([thesis] §7.1.1, Fig. 7.3)."""
-    from dampersim.excitation.engine import engine_orders
-    from dampersim.excitation.torque_curve import default_torque_curve
 
     t0 = time.perf_counter()
     check_executor(executor)
@@ -168,8 +174,6 @@ SENSITIVITY_PARAMETERS = (
 def sufficient_excitation(system=None, quick=False, executor="processes", progress=None, cancel=None):
     """Impact of +-20 % parameter changes on the output torque against the excitation
     magnitude (40-600 N m), below (150 N m) and above (400 N m) the knee ([thesis] §7.1.2)."""
-    from dampersim.parameters import with_updates
-    from dampersim.parameters.io import to_dict
 
     t0 = time.perf_counter()
     check_executor(executor)
@@ -253,9 +257,6 @@ def mapping(system=None, quick=False, executor="processes", progress=None, cance
     """Efficient mapping procedure (Table 7.1) at 100 and 300 N m amplitude over 100-500 N m
     mean torque, its MR maps, and their prediction of a fired-engine WOT campaign
     ([thesis] §7.1.3, Fig. 7.14-7.16)."""
-    from dampersim.analysis.maps import magnification_map, predict_along_curve
-    from dampersim.excitation.engine import engine_orders
-    from dampersim.excitation.torque_curve import default_torque_curve
 
     t0 = time.perf_counter()
     check_executor(executor)
@@ -375,8 +376,6 @@ def poor_performance(system=None, quick=False, executor="processes", progress=No
 def _stiffness_run(system, excitation, duration):
     """Outer-set dynamic stiffness, vibration angle and per-segment compression range of
     one slow-sine run (the approach of tests/physics/test_speed_stiffening.py)."""
-    from dampersim.signal import order_amplitudes
-    from dampersim.simulation import simulate
 
     res = simulate(system, excitation, duration=duration)
     order = excitation.orders[0][0]
@@ -412,7 +411,6 @@ def speed_stiffness(system=None, quick=False, executor="processes", progress=Non
     """Outer-set dynamic stiffness over speed (500-3000 rpm) and vibration angle (slow
     sine, 150 N m mean), with segment motion at ~5 and ~30 deg ([thesis] §7.3.2,
     Fig. 7.27-7.30)."""
-    from dampersim.excitation import OrderSum
 
     t0 = time.perf_counter()
     check_executor(executor)
@@ -479,7 +477,6 @@ STUDIES = {
 
 def run_study(name, system=None, quick=False, executor="processes", progress=None, cancel=None):
     """Run the study ``name`` (one of :data:`STUDIES`)."""
-    from dampersim.errors import InputError
 
     if name not in STUDIES:
         raise InputError(f"study {name!r}: accepted is one of {', '.join(STUDIES)}")

@@ -34,6 +34,11 @@ import numpy as np
 
 from dampersim import keys
 from dampersim.errors import InputError
+from dampersim.parameters import to_dict
+from dampersim.results import ANALYSIS_WINDOW
+from dampersim.signal import amplitude_spectrum, order_amplitudes
+from dampersim.simulation import natural_duration, simulate
+from dampersim.sweeps.grid import TestPoint
 
 #: Environment variable naming the cache directory (read at call time).
 CACHE_DIR_ENV = "DAMPERSIM_CACHE_DIR"
@@ -100,7 +105,6 @@ except Exception:
 
 
 def _excitation_of(point_or_excitation):
-    from dampersim.sweeps.grid import TestPoint
 
     if isinstance(point_or_excitation, TestPoint):
         return point_or_excitation.excitation()
@@ -110,7 +114,6 @@ def _excitation_of(point_or_excitation):
 def resolved_duration(system, excitation, duration=None) -> float:
     """Simulated duration [s]: ``duration`` if given, else the excitation's own length or
     the solver's ``duration`` (as :func:`dampersim.simulate` resolves it)."""
-    from dampersim.simulation import natural_duration
 
     dur = natural_duration(excitation, system.solver) if duration is None else float(duration)
     if not (math.isfinite(dur) and dur > 0):
@@ -125,8 +128,6 @@ def key_parts(system, point_or_excitation, duration=None, window=None) -> dict:
     object; duration [s] (None: natural duration); window: analysis window [s] (None:
     1.25 s, [thesis] §3.4).
     """
-    from dampersim.parameters import to_dict
-    from dampersim.results import ANALYSIS_WINDOW
 
     excitation = _excitation_of(point_or_excitation)
     window = ANALYSIS_WINDOW if window is None else float(window)
@@ -287,7 +288,6 @@ def _order_index(stored, k) -> int:
 
 def _amplitudes_below_nyquist(x, fs, speed, orders):
     """Order amplitudes [N m]; NaN for orders at or above the Nyquist frequency."""
-    from dampersim.signal import order_amplitudes
 
     orders = np.asarray(orders, dtype=float)
     out = np.full(orders.size, np.nan)
@@ -306,9 +306,6 @@ def compute_record(system, point, duration=None, window=None, key="") -> PointRe
     :func:`order_amplitudes` (exactly as ``SimulationResult.order_amplitudes``) and the
     half orders 0.5-7.5 in a second call.
     """
-    from dampersim.signal import amplitude_spectrum
-    from dampersim.results import ANALYSIS_WINDOW
-    from dampersim.simulation import simulate
 
     t0 = time.perf_counter()
     window = ANALYSIS_WINDOW if window is None else float(window)

@@ -30,17 +30,15 @@ from dampersim import keys as _keys
 from dampersim.analysis.colourmap import SWEEP_COLUMNS
 from dampersim.errors import DampersimError, InputError
 from dampersim.fileio import write_parquet_atomic
+from dampersim.parameters import validate
+from dampersim.results import ANALYSIS_WINDOW
+from dampersim.solver.linear import check_time_step
 from dampersim.sweeps import cache as _cache
-from dampersim.sweeps.backends import (  # noqa: F401 (SCHEDULER_ENV, cpu_count, process_pool: part of this module's API)
-    SCHEDULER_ENV,
-    DaskBackend,
-    PoolBackend,
-    compute_task,
-    cpu_count,
-    process_pool,
-)
+from dampersim.sweeps.backends import SCHEDULER_ENV, DaskBackend, PoolBackend, compute_task, cpu_count
 from dampersim.version import __version__
 from dampersim.sweeps.grid import TestPoint
+from dampersim.analysis.metrics import magnification_ratio
+from dampersim.units import rad_s_to_rpm
 
 #: Accepted values of ``executor``.
 EXECUTORS = ("processes", "serial", "dask")
@@ -269,11 +267,8 @@ def run_sweep(
         SweepCancelled: cancelled (``completed`` says how many points are done).
         SweepPointFailed: a point failed (e.g. diverged); finished points stay cached.
     """
-    from dampersim.parameters import validate
-    from dampersim.results import ANALYSIS_WINDOW
-
     t_start = time.perf_counter()
-    validate(system)
+    check_time_step(validate(system))
     points = tuple(points) if points is not None else ()
     if not points:
         raise InputError("a sweep needs at least one test point")
@@ -429,8 +424,6 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
 
 
 def _assemble(points, keys, records, cached_keys, orders, executor, wall):
-    from dampersim.analysis.metrics import magnification_ratio
-    from dampersim.units import rad_s_to_rpm
 
     orders_arr = np.asarray(orders, dtype=float)
     n_o = orders_arr.size

@@ -15,6 +15,7 @@ import numpy as np
 
 from dampersim.errors import InputError
 from dampersim.units import rad_s_to_rpm, rpm_to_rad_s
+from dampersim.excitation import OrderSum, parse_orders
 
 #: Speeds accepted in sweeps [rpm] (the same limits as ``dampersim simulate --speed``).
 MIN_RPM, MAX_RPM = 300.0, 6000.0
@@ -72,7 +73,6 @@ class TestPoint:
     def excitation(self):
         """The :class:`dampersim.OrderSum` that drives this test point (with the start-up
         ramps of [thesis] §6.2.1)."""
-        from dampersim.excitation import OrderSum
 
         return OrderSum(speed=self.speed, mean_torque=self.mean_torque, orders=self.orders)
 
@@ -83,7 +83,6 @@ def _normalise_orders(orders) -> tuple:
     if orders is None:
         return ()
     if isinstance(orders, str):
-        from dampersim.excitation import parse_orders
 
         return parse_orders(orders)
     out = []

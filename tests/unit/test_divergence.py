@@ -4,6 +4,7 @@ import pytest
 
 from dampersim import OrderSum, SimulationDiverged, default_parameters, simulate
 from dampersim.parameters import with_updates
+from dampersim.solver.linear import check_time_step
 
 
 def test_runaway_stops_with_time_and_hint():
@@ -24,5 +25,14 @@ def test_unstable_step_is_refused_by_validation():
     from dampersim.errors import ParameterError
 
     with pytest.raises(ParameterError) as e:
-        with_updates(default_parameters(), {"solver.time_step": 2e-4})
+        check_time_step(with_updates(default_parameters(), {"solver.time_step": 2e-4}))
+    assert "stability bound" in str(e.value)
+
+
+def test_simulate_refuses_an_unstable_step_before_running():
+    from dampersim.errors import ParameterError
+
+    unstable = with_updates(default_parameters(), {"solver.time_step": 2e-4})
+    with pytest.raises(ParameterError) as e:
+        simulate(unstable, OrderSum(speed=150.0, mean_torque=100.0), duration=0.01)
     assert "stability bound" in str(e.value)
