@@ -9,8 +9,9 @@
 
 Modules: :mod:`~dampersim.sweeps.grid` (test points, ranges in rpm -> rad/s),
 :mod:`~dampersim.sweeps.cache` (keys, stored records, diskcache store),
-:mod:`~dampersim.sweeps.executor` (serial, processes, Dask) and
-:mod:`~dampersim.sweeps.commands` (the ``sweep`` and ``orders`` CLI commands).
+:mod:`~dampersim.sweeps.executor` (planning a sweep through the cache) and
+:mod:`~dampersim.sweeps.backends` (serial, processes, Dask). The ``sweep`` and ``map``
+commands are in :mod:`dampersim.cli.sweeps`.
 """
 
 from dampersim.sweeps.grid import TestPoint, make_grid, parse_range, parse_torques, parse_values, speed_sweep
