@@ -22,6 +22,7 @@ from dampersim.errors import DampersimError, InputError, ParameterError
 from dampersim.parameters import default_parameters, dotted_names, dumps_toml, loads_toml, with_updates
 from dampersim.parameters.validation import describe_range
 from dampersim.plotting.theme import number_text
+from dampersim.solver.linear import check_time_step
 from dampersim.units import rad_to_deg
 from dampersim.views.notices import notice, parse_number, query_value
 from dampersim.views.store import LABEL_NAMES, load_parameter_set, store_parameter_set, valid_set_id
@@ -113,8 +114,8 @@ def apply_overrides(base, overrides: dict, notices: list | None = None, source: 
     """Apply dotted overrides one by one to ``base``; refused ones get a notice.
 
     Returns (system, accepted overrides {name: typed value}). Overrides equal to the base
-    value are dropped. Each accepted one is validated together with the ones before it
-    (the time-step stability bound depends on several parameters).
+    value are dropped. Each accepted one is validated together with the ones before it,
+    time-step stability bound included (it depends on several parameters).
     """
     names = set(dotted_names(base))
     system = base
@@ -129,7 +130,7 @@ def apply_overrides(base, overrides: dict, notices: list | None = None, source: 
                 v = parse_number(raw)
                 if not (lo <= v <= hi):
                     raise ParameterError(name, raw, f"a value from {number_text(lo)} to {number_text(hi)} on this dashboard")
-            system = with_updates(system, {name: raw})
+            system = check_time_step(with_updates(system, {name: raw}))
         except ParameterError as exc:
             if notices is not None:
                 shown = raw if isinstance(raw, str) else number_text(raw)
@@ -263,7 +264,7 @@ def parse_uploaded_parameters(contents, filename: str = "parameters.toml"):
     except UnicodeDecodeError:
         raise InputError(f"{name} is not UTF-8 text; accepted is a TOML parameter file") from None
     try:
-        return loads_toml(text)
+        return check_time_step(loads_toml(text))
     except ParameterError as exc:
         raise ParameterError(f"{name}: {exc.field}", exc.value, exc.accepted,
                              str(exc).split(" (", 1)[1].rstrip(")") if " (" in str(exc) else "") from None
@@ -289,7 +290,7 @@ def apply_table_edits(params: dict | None, rows: list) -> tuple:
             updates[name] = str(text).strip()
     if not updates:
         return params, current
-    system = with_updates(current, updates)
+    system = check_time_step(with_updates(current, updates))
     overrides = dict(params.get("overrides") or {})
     for name in updates:
         overrides[name] = _override_value(system, name)
