@@ -7,6 +7,7 @@ import dash
 from dash import Input, Output, State, callback, dcc, html
 
 from dampersim.errors import DampersimError
+from dampersim.views.pulsation import dominant_order_view, pulsation_view
 
 dash.register_page(__name__, path="/pulsation", name="Pulsation generator", title="Pulsation generator · dampersim", order=7)
 
@@ -43,22 +44,12 @@ def layout(pressure="2.5", speed="1500", coupled="0", **kwargs):
     prevent_initial_call=True,
 )
 def run(_n, pressure, speed, coupled):
-    from dampersim.excitation.pulsation import check_speed_rpm, pressure_warnings, simulate_pulsation
-    from dampersim.parameters.engine import check_pressure_bar
-    from dampersim.plotting.studies import pulsation_figures
-    from dampersim.units import rpm_to_rad_s
-
     try:
-        p = check_pressure_bar(pressure)
-        warns = check_speed_rpm(speed, warn=False) + pressure_warnings(p)
-        res = simulate_pulsation(rpm_to_rad_s(float(speed)), p, 200.0, coupled=bool(coupled))
+        view = pulsation_view(pressure, speed, coupled)
     except DampersimError as exc:
         return dash.no_update, dash.no_update, dash.no_update, "", str(exc)
-    f1, f2, f3 = pulsation_figures(res)
-    s = res.summary()
-    text = (f"dominant order {s['dominant_order']:g}; peak cylinder pressure {s['peak_cylinder_pressure_bar']:.1f} bar; "
-            f"mean torque {s['mean_torque_nm']:.1f} N m")
-    return f1, f2, f3, text, " ".join(warns)
+    f1, f2, f3 = view["figures"]
+    return f1, f2, f3, view["summary"], " ".join(view["warnings"])
 
 
 @callback(
@@ -68,19 +59,4 @@ def run(_n, pressure, speed, coupled):
     prevent_initial_call=True,
 )
 def sweep(set_progress, _n, pressure, coupled):
-    import numpy as np
-
-    from dampersim.excitation.pulsation import simulate_pulsation
-    from dampersim.parameters.engine import check_pressure_bar
-    from dampersim.plotting.studies import dominant_order_figure
-    from dampersim.units import rpm_to_rad_s
-
-    p = check_pressure_bar(pressure)
-    speeds = list(range(1000, 3001, 250))
-    rows = []
-    for i, rpm in enumerate(speeds):
-        r = simulate_pulsation(rpm_to_rad_s(rpm), p, 200.0, coupled=bool(coupled))
-        a = r.order_amplitudes((2.0, 4.0, 6.0))
-        rows.append((rpm, (2, 4, 6)[int(np.argmax(a))], [float(x) for x in a]))
-        set_progress((str(i + 1), str(len(speeds))))
-    return dominant_order_figure(rows)
+    return dominant_order_view(pressure, coupled, progress=lambda done, total: set_progress((str(done), str(total))))

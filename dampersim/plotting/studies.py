@@ -115,7 +115,7 @@ def study_figures(res) -> list:
 
 def pulsation_figures(result, orders=(1, 2, 3, 4, 5, 6, 7, 8)) -> list:
     """Torque trace (last 0.1 s), cylinder-1 pressure over crank angle and order content
-    of one :class:`~dampersim.excitation.pulsation.PulsationResult`."""
+    of one pulsation-generator run (a :class:`~dampersim.simulation.PulsationResult`, read by attribute)."""
     w = result.window(0.1)
     f = _fig("Pulsation generator output torque", "time [s]", "torque [N m]")
     f.add_scatter(x=result.t[w], y=result.output_torque[w], mode="lines", name="generator output")

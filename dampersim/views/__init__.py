@@ -7,7 +7,8 @@ One module per concern: :mod:`~dampersim.views.state` (page state in the URL),
 :mod:`~dampersim.views.notices` (notices and query values), and one module per page's
 computation: :mod:`~dampersim.views.explorer`, :mod:`~dampersim.views.segments`,
 :mod:`~dampersim.views.sweeps` (Colourmap and Maps), :mod:`~dampersim.views.hysteresis`,
-:mod:`~dampersim.views.studies` and :mod:`~dampersim.views.discrepancy`. A view returns JSON-ready data: Plotly figures as
+:mod:`~dampersim.views.pulsation`, :mod:`~dampersim.views.studies` and
+:mod:`~dampersim.views.discrepancy`. A view returns JSON-ready data: Plotly figures as
 dicts (built by :mod:`dampersim.plotting`), tables and summary figures.
 
 The names below are re-exported for scripts and notebooks; pages import from the
@@ -76,6 +77,7 @@ from dampersim.views.discrepancy import (
     upload_folder,
     upload_label,
 )
+from dampersim.views.pulsation import dominant_order_view, pulsation_view
 from dampersim.views.studies import study_view
 
 __all__ = [
@@ -119,6 +121,8 @@ __all__ = [
     "apply_table_edits",
     "SweepRegistry",
     "running_sweeps",
+    "pulsation_view",
+    "dominant_order_view",
     "study_view",
     "CAMPAIGN_ACCEPTED",
     "UPLOAD_PREFIX",
