@@ -35,7 +35,7 @@ from dampersim.parameters import default_parameters
 from dampersim.plotting import discrepancy as diagnosis_plots
 from dampersim.sweeps.cache import repo_root
 from dampersim.views.notices import notice, query_value
-from dampersim.views.store import cache_dir, cached_view, discrepancy_source_hash, view_key
+from dampersim.views.store import cache_dir, cached_view, view_key
 
 #: Sub-directory of the cache with the unpacked campaign uploads.
 UPLOADS_SUBDIR = "campaign-uploads"
@@ -257,10 +257,10 @@ def _campaign_digest(folder: str, files: tuple) -> str:
 
 # --------------------------------------------------------------------------- diagnosis
 def discrepancy_key(folder, system=None) -> str:
-    """Cache key of a diagnosis: campaign files, parameter set, options, code and version
-    (a :func:`view_key` of kind "discrepancy" with the code of :func:`discrepancy_source_hash`)."""
+    """Cache key of a diagnosis: campaign files, parameter set, options, code, platform and
+    version (a :func:`view_key` of kind "discrepancy")."""
     state = {"format": DISCREPANCY_FORMAT, "campaign": campaign_digest(folder), "options": DISCREPANCY_OPTIONS}
-    return view_key("discrepancy", system or default_parameters(), state, source=discrepancy_source_hash())
+    return view_key("discrepancy", system or default_parameters(), state)
 
 
 def discrepancy_figures(doc: dict) -> dict:

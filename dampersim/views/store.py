@@ -1,9 +1,10 @@
 """The view cache: computed views stored in diskcache under their keys, looked up by one
 decorator (:func:`cached_view`), and the store of parameter sets uploaded to this server.
 
-Views live under ``cache_dir()/"views"`` keyed by :func:`view_key`: a SHA-256 of the view
-name, the complete parameter set, the page state, the package version and the source
-hash of the code behind the view, so a physics change can never return a stale view.
+Views live under ``cache_dir()/"views"`` keyed by :func:`view_key`, the canonical key of
+:mod:`dampersim.keys` over the view name, the complete parameter set, the page state, the
+package version, the platform and the source of the code behind the view, so a physics
+change can never return a stale view.
 Every key of this package (page views, single hysteresis loops, the Segments page's
 simulation, diagnoses) is made by :func:`view_key`. Sweep test points are cached per
 point by :mod:`dampersim.sweeps` as usual, so a cancelled sweep keeps its finished points.
@@ -11,11 +12,9 @@ point by :mod:`dampersim.sweeps` as usual, so a cancelled sweep keeps its finish
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import inspect
-import json
 import os
 import re
 
@@ -26,7 +25,6 @@ from dampersim import keys
 from dampersim.errors import InputError
 from dampersim.parameters import dumps_toml, to_dict
 from dampersim.sweeps.cache import cache_dir
-from dampersim.version import __version__
 
 #: Sub-directories of :func:`dampersim.sweeps.cache.cache_dir` used here.
 VIEWS_SUBDIR = "views"
@@ -37,10 +35,9 @@ VIEWS_SIZE_LIMIT = 2 * 2**30
 VIEW_FORMAT = 1
 #: Labels of a parameter set, not physics: never part of a key, never carried as overrides.
 LABEL_NAMES = ("name", "source")
-#: The package whose code (with everything it imports) shapes a page view.
+#: The package whose code (with everything it imports, the diagnosis included) shapes a
+#: page view: its import closure is hashed into every view key.
 VIEWS_MODULE = "dampersim.views"
-#: The modules whose code (with everything they import) shapes a cached diagnosis.
-DISCREPANCY_MODULES = ("dampersim.discrepancy.diagnose", "dampersim.discrepancy.campaign", "dampersim.discrepancy.report")
 
 _STORES: dict = {}
 
@@ -75,52 +72,20 @@ def close_stores() -> None:
 
 
 # --------------------------------------------------------------------------- keys
-def _canonical(obj):
-    if obj is None or isinstance(obj, (bool, str)):
-        return obj
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return {"f": float(obj).hex()}
-    if isinstance(obj, dict):
-        return {str(k): _canonical(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_canonical(v) for v in obj]
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: _canonical(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
-    raise InputError(f"cannot build a view key from a {type(obj).__name__} value")
-
-
-def views_source_hash() -> str:
-    """Hash of the code that shapes a view: every module :data:`VIEWS_MODULE` reaches
-    through imports (:func:`dampersim.keys.source_hash`, read once per process)."""
-    return keys.source_hash(VIEWS_MODULE)
-
-
-def discrepancy_source_hash() -> str:
-    """Hash of the code behind a diagnosis: every module :data:`DISCREPANCY_MODULES` reach
-    through imports (read once per process)."""
-    return hashlib.sha256("\0".join(keys.source_hash(m) for m in DISCREPANCY_MODULES).encode()).hexdigest()
-
-
-def view_key(kind: str, system, state: dict, source: str | None = None) -> str:
-    """SHA-256 key of a view: kind, complete parameter set (labels excluded), page state
-    (without the parameter state, which ``system`` already holds), package version and the
-    hash of the code behind the view (``source``; default :func:`views_source_hash`, the
-    simulation, analysis and figure code)."""
-    doc = {
-        "schema": "dampersim.view",
+def view_key(kind: str, system, state: dict) -> str:
+    """SHA-256 key of a view (:func:`dampersim.keys.make_key`): kind, complete parameter set
+    (labels excluded), page state (without the parameter state, which ``system`` already
+    holds), package version, platform and the source of every module the views reach
+    through imports (figures, analysis, simulation, diagnosis)."""
+    parts = {
         "format": VIEW_FORMAT,
         "kind": kind,
-        "version": __version__,
-        "source": views_source_hash() if source is None else source,
         "parameters": {k: v for k, v in to_dict(system).items() if k not in LABEL_NAMES},
         # numbers as floats: a state that went through JSON (a browser store) may bring 30 for 30.0
         "state": {k: (float(v) if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) else v)
                   for k, v in state.items() if k != "params"},
     }
-    text = json.dumps(_canonical(doc), sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    return keys.make_key("dampersim.view", VIEWS_MODULE, parts)
 
 
 # --------------------------------------------------------------------------- entries
@@ -223,8 +188,6 @@ __all__ = [
     "cache_dir",
     "view_store",
     "close_stores",
-    "views_source_hash",
-    "discrepancy_source_hash",
     "view_key",
     "load_entry",
     "save_entry",

@@ -74,3 +74,20 @@ def test_platform_names_the_libraries_and_cpu_that_shape_numbers():
         assert plat[name]
     doc = keys.key_document("probe", RECORD, {"x": 1})
     assert doc["platform"] == plat and doc["source"] == keys.source_hash(RECORD)
+
+
+def test_view_keys_cover_figures_analysis_and_the_diagnosis():
+    covered = keys.module_closure("dampersim.views")
+    for name in ("dampersim.plotting.traces", "dampersim.plotting.colourmaps", "dampersim.analysis.maps",
+                 "dampersim.discrepancy.diagnose", "dampersim.discrepancy.report", "dampersim.signal",
+                 "dampersim.solver.kernels.integrate"):
+        assert name in covered, name
+
+
+def test_study_runs_are_keyed_by_the_study_code(package_copy):
+    from dampersim.studies import studies
+
+    before = keys.source_hash_at(studies.__name__, package_copy)
+    path = package_copy / "studies" / "studies.py"
+    path.write_text(path.read_text() + "\n# changed\n")
+    assert keys.source_hash_at(studies.__name__, package_copy) != before
