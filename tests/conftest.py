@@ -2,6 +2,7 @@
 
 import os
 import shutil
+import sys
 
 import pytest
 
@@ -25,12 +26,16 @@ def _dampersim_cache_dir(tmp_path_factory):
 
 @pytest.fixture
 def cache_dir(tmp_path, monkeypatch):
-    """A fresh, empty result cache for one test: DAMPERSIM_CACHE_DIR points at
-    ``tmp_path / "cache"`` (not created yet) until the test ends. Tests that need their
-    own cache location ask for this fixture instead of setting the variable themselves."""
+    """A fresh, empty cache (sweep points, views, uploads) for one test:
+    DAMPERSIM_CACHE_DIR points at ``tmp_path / "cache"`` (not created yet) until the test
+    ends, and the view stores opened on it are closed then. Tests that need their own
+    cache location ask for this fixture instead of setting the variable themselves."""
     path = tmp_path / "cache"
     monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(path))
-    return path
+    yield path
+    store = sys.modules.get("dampersim.views.store")
+    if store is not None:  # the dashboard tiers open diskcache stores on it
+        store.close_stores()
 
 
 def pytest_collection_modifyitems(config, items):

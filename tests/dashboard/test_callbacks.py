@@ -36,13 +36,6 @@ def pages(app_module):
     return SimpleNamespace(**{n: sys.modules[f"pages.{n}"] for n in names})
 
 
-@pytest.fixture
-def fresh_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
-    yield
-    views.close_stores()
-
-
 def as_json(component) -> str:
     return json.dumps(component, default=lambda c: c.to_plotly_json() if hasattr(c, "to_plotly_json") else str(c))
 
@@ -118,7 +111,7 @@ def explorer_args(speed=1600.0, torque=180.0, orders=((2, 300, 0), (4, 80, 90)),
             params or {"set": None, "overrides": {}})
 
 
-def test_explorer_outputs_good_state(pages, fresh_cache):
+def test_explorer_outputs_good_state(pages, cache_dir):
     out = pages.explorer.explorer_outputs(*explorer_args())
     assert out["error"] is None and out["notices"] == []
     assert set(out["figures"]) == {"traces", "spectrum", "mr", "windup", "energy"}
@@ -128,7 +121,7 @@ def test_explorer_outputs_good_state(pages, fresh_cache):
     assert list(mr["x"]) == ["2", "4"] and all(0 < y < 1 for y in mr["y"])
 
 
-def test_explorer_control_changes_go_into_the_url(pages, fresh_cache):
+def test_explorer_control_changes_go_into_the_url(pages, cache_dir):
     out = pages.explorer.explorer_outputs(*explorer_args(outer=12))
     assert "solver.outer_segments=12" in out["search"]
     assert out["params"]["overrides"] == {"solver.outer_segments": 12}
@@ -141,7 +134,7 @@ def test_explorer_control_changes_go_into_the_url(pages, fresh_cache):
     assert out["params"]["overrides"]["inertias.primary"] == 0.2234567891
 
 
-def test_explorer_refused_values_keep_the_previous_results(pages, fresh_cache):
+def test_explorer_refused_values_keep_the_previous_results(pages, cache_dir):
     out = pages.explorer.explorer_outputs(*explorer_args(speed=None, outer=500))
     assert out["error"] is None
     text = " ".join(n["text"] for n in out["notices"])
@@ -160,7 +153,7 @@ def test_explorer_refused_values_keep_the_previous_results(pages, fresh_cache):
     assert "1000 N m" in notices
 
 
-def test_explorer_callback_keeps_figures_when_the_simulation_fails(pages, fresh_cache, monkeypatch):
+def test_explorer_callback_keeps_figures_when_the_simulation_fails(pages, cache_dir, monkeypatch):
     from dampersim.errors import SimulationDiverged
 
     def boom(*a, **k):
@@ -189,7 +182,7 @@ def colourmap_values(speeds="1400,1600", cuts=("2", "4")):
             SHORT, 0.5, 400, [], list(cuts)]
 
 
-def test_colourmap_request_job_show(pages, fresh_cache):
+def test_colourmap_request_job_show(pages, cache_dir):
     cm = pages.colourmap
     base = {"set": None, "overrides": {}}
     out = cm.request(False, True, colourmap_values(), base, False)
@@ -207,14 +200,14 @@ def test_colourmap_request_job_show(pages, fresh_cache):
     assert "Shown from the cache" in as_json(cm.show({**again["hit"], "nonce": "y"})[-2])
 
 
-def test_colourmap_refuses_a_window_too_short_for_the_speeds(pages, fresh_cache):
+def test_colourmap_refuses_a_window_too_short_for_the_speeds(pages, cache_dir):
     vals = colourmap_values(speeds="400,600")
     vals[6] = 0.2
     out = pages.colourmap.request(True, False, vals, None, False)
     assert "job" not in out and "too short" in as_json(out["notices"])
 
 
-def test_background_job_errors_are_reported_not_raised(pages, fresh_cache, monkeypatch):
+def test_background_job_errors_are_reported_not_raised(pages, cache_dir, monkeypatch):
     from dampersim.sweeps.executor import SweepPointFailed
 
     def fail(*a, **k):
@@ -228,7 +221,7 @@ def test_background_job_errors_are_reported_not_raised(pages, fresh_cache, monke
     assert all(v is no_update for v in shown[:4]) and "previous colourmaps are kept" in as_json(shown[-1])
 
 
-def test_request_callback_through_dash_context(pages, fresh_cache):
+def test_request_callback_through_dash_context(pages, cache_dir):
     cb = pages.colourmap.callbacks.request
     vals = colourmap_values()
     ids = ["colourmap-run.n_clicks", "colourmap-speeds.value", "colourmap-torque.value"]
@@ -241,7 +234,7 @@ def test_request_callback_through_dash_context(pages, fresh_cache):
     assert "Cancelled" in as_json(pages.colourmap.callbacks.cancel(1))
 
 
-def test_hysteresis_request_job_show(pages, fresh_cache):
+def test_hysteresis_request_job_show(pages, cache_dir):
     h = pages.hysteresis
     values = ["full-100", "1500", 500, 0.2, "total", []]
     out = h.request(True, False, values, None, False)
@@ -255,7 +248,7 @@ def test_hysteresis_request_job_show(pages, fresh_cache):
     assert "rate=0" in as_json(bad["notices"]) and "windup='sideways'" in as_json(bad["notices"])
 
 
-def test_maps_request_job_show(pages, fresh_cache):
+def test_maps_request_job_show(pages, cache_dir):
     m = pages.maps
     values = ["1500", "100,300", [2, 4, None, None, None, None], [300, 100, None, None, None, None],
               [0, 0, None, None, None, None], SHORT, 0.5, ["2", "4"], 30, 150, 2]  # 2 test points, 4 map points
@@ -267,7 +260,7 @@ def test_maps_request_job_show(pages, fresh_cache):
     assert shown[0]["data"][0]["type"] == "heatmap" and "Largest MR" in as_json(shown[2])
 
 
-def test_segments_callback(pages, fresh_cache):
+def test_segments_callback(pages, cache_dir):
     s = pages.segments
     ks, amps, phs = [2, None, None, None, None, None], [300, None, None, None, None, None], [0, None, None, None, None, None]
     res = s.update_segments(1500, 200, ks, amps, phs, SHORT, "outer", 0.2, 0.02, 5, None, None)
@@ -282,7 +275,7 @@ def _upload(text):
     return "data:application/toml;base64," + base64.b64encode(text.encode()).decode()
 
 
-def test_parameters_actions(pages, fresh_cache):
+def test_parameters_actions(pages, cache_dir):
     p = pages.parameters
     rows = p.table_rows(views.resolve_system(None))
     edited = [dict(r, value="0.3") if r["name"] == "inertias.primary" else r for r in rows]
@@ -301,7 +294,7 @@ def test_parameters_actions(pages, fresh_cache):
     assert p.parameters_action("reset", None, up["params"])["params"] == {"set": None, "overrides": {}}
 
 
-def test_parameters_callback_and_download(pages, fresh_cache):
+def test_parameters_callback_and_download(pages, cache_dir):
     p = pages.parameters
     params = {"set": None, "overrides": {"inertias.primary": 0.3}}
     res = with_triggers(p.on_action, ["parameters-validate.n_clicks", "parameters-apply.n_clicks"], 0, 0, 0, 0, None, None, [], [], params)

@@ -122,14 +122,12 @@ def test_bad_link_values_give_a_notice_and_fall_back(query, expect):
         assert find(lay, "discrepancy-autorun").data is False  # a refused link value does not start a run
 
 
-def test_refused_dropdown_value_gives_a_notice_in_the_request(tmp_path, monkeypatch):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+def test_refused_dropdown_value_gives_a_notice_in_the_request(cache_dir):
     out = D.request(False, True, ["upload:feedfacefeedface"], None, False)
     assert "upload the zip again" in as_json(out["notices"]) and out["search"] == f"?campaign={EXAMPLE}"
     assert "Not diagnosed yet: 12 torsional test points" in as_json(out["status"]) and "job" not in out
     run = D.request(True, False, [EXAMPLE], None, False)
     assert run["job"] == {"state": {"campaign": EXAMPLE, "upload": None}}
-    views.close_stores()
 
 
 # ----------------------------------------------------------------------------- uploads
@@ -148,19 +146,17 @@ def _manifest_outside():
     (_manifest_outside(), "outside.zip", "lies outside the campaign folder"),
     ("no data url", "weird.zip", "arrived without content"),
 ])
-def test_bad_uploads_are_refused_with_a_notice(tmp_path, monkeypatch, contents, filename, expect):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+def test_bad_uploads_are_refused_with_a_notice(cache_dir, contents, filename, expect):
     options, value, notices = D.upload(contents, filename, [{"label": "x", "value": EXAMPLE}])
     text = as_json(notices)
     assert options is no_update and value is no_update  # the chosen campaign stays
     assert "notice-error" in text and "The upload was refused" in text and expect in text, text
     assert filename in text and "accepted is" in text and "manifest.csv" in text  # names the file and the format
-    uploads = tmp_path / "cache" / views.UPLOADS_SUBDIR
+    uploads = cache_dir / views.UPLOADS_SUBDIR
     assert not uploads.exists() or not any(p for p in uploads.iterdir() if p.is_dir())  # nothing kept
 
 
-def test_upload_with_problems_shows_every_problem_by_file_and_field(tiny, tmp_path, monkeypatch):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+def test_upload_with_problems_shows_every_problem_by_file_and_field(tiny, tmp_path, cache_dir):
     bad = tmp_path / "bad"
     shutil.copytree(tiny["folder"], bad)
     man = pd.read_csv(bad / "manifest.csv")
@@ -177,7 +173,6 @@ def test_upload_with_problems_shows_every_problem_by_file_and_field(tiny, tmp_pa
         assert where in text, where
     out = D.request(True, False, [value], None, False)  # Run with 1 valid point: refused, no job
     assert "job" not in out and "cannot be diagnosed" in as_json(out["status"])
-    views.close_stores()
 
 
 # ----------------------------------------------------------------------------- diagnosis and cache
@@ -281,8 +276,7 @@ def test_layout_over_http_good_and_bad_links(dc):
     assert "notice-warning" in bad and "campaign='nope'" in bad and f"Using the example {EXAMPLE}" in bad
 
 
-def test_bad_upload_over_http_gives_the_notice(dc, tmp_path, monkeypatch):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
+def test_bad_upload_over_http_gives_the_notice(dc, cache_dir):
     values = {"discrepancy-upload.contents": zip_upload({"readme.txt": b"no campaign here"}),
               "discrepancy-upload.filename": "readme.zip",
               "discrepancy-campaign.options": [{"label": f"example: {EXAMPLE}", "value": EXAMPLE}]}
@@ -291,7 +285,6 @@ def test_bad_upload_over_http_gives_the_notice(dc, tmp_path, monkeypatch):
     resp = r.get_json()["response"]
     assert "discrepancy-campaign" not in resp  # no_update: the chosen campaign stays
     assert "holds no manifest.csv" in json.dumps(resp["discrepancy-upload-notices"])
-    views.close_stores()
 
 
 def test_request_and_show_over_http(dc, tiny):

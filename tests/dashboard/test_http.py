@@ -20,13 +20,6 @@ def dash_app():
     return app.app
 
 
-@pytest.fixture
-def fresh_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
-    yield
-    views.close_stores()
-
-
 class DashClient:
     """Calls callbacks the way the browser does: POST /_dash-update-component."""
 
@@ -138,7 +131,7 @@ def test_unknown_page_is_a_404_page_not_an_error(dc):
 
 
 # ----------------------------------------------------------------------------- explorer
-def test_explorer_callback_over_http(dc, fresh_cache):
+def test_explorer_callback_over_http(dc, cache_dir):
     t0 = time.perf_counter()
     r = dc.call("explorer-traces.figure", explorer_values())
     first = time.perf_counter() - t0
@@ -156,7 +149,7 @@ def test_explorer_callback_over_http(dc, fresh_cache):
     assert again < first
 
 
-def test_explorer_bad_inputs_over_http_and_the_server_keeps_serving(dc, fresh_cache):
+def test_explorer_bad_inputs_over_http_and_the_server_keeps_serving(dc, cache_dir):
     r = dc.call("explorer-traces.figure", explorer_values(speed=9000, outer=999), changed=["explorer-speed.value"])
     assert r.status_code == 200
     notices = json.dumps(r.get_json()["response"]["explorer-run-notices"])
@@ -174,7 +167,7 @@ def colourmap_values(speeds="1400,1600", run=0):
     return v
 
 
-def test_colourmap_request_then_background_job_then_cache_hit(dc, fresh_cache):
+def test_colourmap_request_then_background_job_then_cache_hit(dc, cache_dir):
     r = dc.call("colourmap-url.search", colourmap_values())
     resp = r.get_json()["response"]
     assert "Not computed yet: 2 test points" in json.dumps(resp["colourmap-status"])
@@ -212,7 +205,7 @@ def test_colourmap_request_then_background_job_then_cache_hit(dc, fresh_cache):
     assert "colourmap-job" not in resp and resp["colourmap-hit"]["data"]["key"] == done["key"]
 
 
-def test_colourmap_invalid_sweep_is_refused_over_http(dc, fresh_cache):
+def test_colourmap_invalid_sweep_is_refused_over_http(dc, cache_dir):
     v = colourmap_values(speeds="400,600", run=1)
     v["colourmap-window.value"] = 0.2
     r = dc.call("colourmap-url.search", v, changed=["colourmap-run.n_clicks"])
@@ -232,7 +225,7 @@ def parameters_values(contents=None, filename=None, apply=0):
             "parameters-params.data": {"set": None, "overrides": {"inertias.primary": 0.3}}}
 
 
-def test_parameter_upload_over_http(dc, fresh_cache):
+def test_parameter_upload_over_http(dc, cache_dir):
     r = dc.call("parameters-params.data", parameters_values(_upload("not = [valid"), "broken.toml"),
                 changed=["parameters-upload.contents"])
     resp = r.get_json()["response"]
@@ -252,7 +245,7 @@ def test_navbar_links_carry_the_parameter_set(dc):
 
 
 # ----------------------------------------------------------------------------- other pages over HTTP
-def test_segments_callback_over_http(dc, fresh_cache):
+def test_segments_callback_over_http(dc, cache_dir):
     v = {"segments-speed.value": 1500, "segments-torque.value": 200, "segments-duration.value": SHORT,
          "segments-spring.value": "pair_inner", "segments-window.value": 0.1, "segments-span.value": 0.02,
          "segments-gain.value": 5, "segments-base-params.data": {"set": None, "overrides": {}}}
@@ -266,7 +259,7 @@ def test_segments_callback_over_http(dc, fresh_cache):
     assert "gain=-3" in json.dumps(resp["segments-run-notices"])
 
 
-def test_hysteresis_request_over_http(dc, fresh_cache):
+def test_hysteresis_request_over_http(dc, cache_dir):
     v = {"hysteresis-run.n_clicks": 0, "hysteresis-protocol.value": "full-100", "hysteresis-speeds.value": "1500",
          "hysteresis-rate.value": 500, "hysteresis-hold.value": 0.2, "hysteresis-windup.value": "outer",
          "hysteresis-lowpass.value": ["on"], "hysteresis-base-params.data": None, "hysteresis-autorun.data": False}
@@ -278,7 +271,7 @@ def test_hysteresis_request_over_http(dc, fresh_cache):
     assert resp["hysteresis-job"]["data"]["state"]["windup"] == "outer"
 
 
-def test_maps_request_over_http(dc, fresh_cache):
+def test_maps_request_over_http(dc, cache_dir):
     v = {"maps-run.n_clicks": 0, "maps-speeds.value": "1200:1600:200", "maps-torques.value": "100,300",
          "maps-duration.value": SHORT, "maps-window.value": 0.5, "maps-map-orders.value": ["2"], "maps-fmin.value": 30,
          "maps-fmax.value": 120, "maps-curve-order.value": 2, "maps-base-params.data": None, "maps-autorun.data": True}

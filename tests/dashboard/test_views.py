@@ -16,14 +16,6 @@ from dampersim.errors import DampersimError, InputError, ParameterError
 SHORT = "1.2"  # simulated seconds in these tests (analysis window 0.6 s)
 
 
-@pytest.fixture
-def fresh_cache(tmp_path, monkeypatch):
-    """An empty cache directory for views and sweep points."""
-    monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / "cache"))
-    yield tmp_path / "cache"
-    views.close_stores()
-
-
 def texts(notices):
     return " | ".join(n["text"] for n in notices)
 
@@ -105,7 +97,7 @@ def test_override_that_breaks_the_time_step_bound_names_the_cause():
     assert "solver.time_step" in texts(notices) and "stability bound" in texts(notices)
 
 
-def test_unknown_parameter_set_id_falls_back_to_default(fresh_cache):
+def test_unknown_parameter_set_id_falls_back_to_default(cache_dir):
     state, notices = views.parse_query("parameters", {"set": "0123456789abcdef"})
     assert state["params"]["set"] is None
     assert "not stored on this server" in texts(notices)
@@ -175,7 +167,7 @@ def _explorer_state(**q):
     return state
 
 
-def test_explorer_view_and_its_cache(fresh_cache):
+def test_explorer_view_and_its_cache(cache_dir):
     state = _explorer_state(speed="1800", torque="150", orders="2:300,4:100@90")
     system = views.resolve_system(state["params"])
     view = views.explorer_view(system, state)
@@ -200,7 +192,7 @@ def test_explorer_view_and_its_cache(fresh_cache):
     assert views.view_key("explorer", views.resolve_system(state2["params"]), state2) != view["key"]
 
 
-def test_explorer_view_reports_a_failed_simulation_clearly(fresh_cache):
+def test_explorer_view_reports_a_failed_simulation_clearly(cache_dir):
     state = _explorer_state()
     system = dampersim.parameters.with_updates(dampersim.default_parameters(), {"solver.outer_segments": 4})
     system = dampersim.parameters.with_updates(system, {"solver.time_step": 1e-3}, check=False)
@@ -209,7 +201,7 @@ def test_explorer_view_reports_a_failed_simulation_clearly(fresh_cache):
     assert "solver.time_step" in str(exc.value)
 
 
-def test_segments_view_has_heatmap_and_animation(fresh_cache):
+def test_segments_view_has_heatmap_and_animation(cache_dir):
     state, notices = views.parse_query("segments", {"duration": SHORT, "span": "0.02", "spring": "pair_outer"})
     assert notices == []
     view = views.segments_view(views.resolve_system(state["params"]), state)
@@ -222,7 +214,7 @@ def test_segments_view_has_heatmap_and_animation(fresh_cache):
     assert views.segments_view(views.resolve_system(state["params"]), state)["from_cache"]
 
 
-def test_hysteresis_view_with_progress(fresh_cache):
+def test_hysteresis_view_with_progress(cache_dir):
     state, notices = views.parse_query("hysteresis", {"speeds": "1500", "rate": "500", "hold": "0.2", "protocol": "full-100"})
     assert notices == []
     system = views.resolve_system(state["params"])
@@ -253,7 +245,7 @@ def _colourmap_state(**q):
     return state
 
 
-def test_colourmap_view_cache_only_then_computed_then_cached(fresh_cache):
+def test_colourmap_view_cache_only_then_computed_then_cached(cache_dir):
     state = _colourmap_state()
     system = views.resolve_system(state["params"])
     assert views.colourmap_view(system, state, cache_only=True) is None
@@ -273,7 +265,7 @@ def test_colourmap_view_cache_only_then_computed_then_cached(fresh_cache):
     assert other is not None and other["from_cache"] is False and other["summary"]["computed"] == 0
 
 
-def test_cancelled_sweep_keeps_finished_points_and_previous_views(fresh_cache):
+def test_cancelled_sweep_keeps_finished_points_and_previous_views(cache_dir):
     from dampersim.sweeps.executor import SweepCancelled
 
     first = _colourmap_state()
@@ -290,7 +282,7 @@ def test_cancelled_sweep_keeps_finished_points_and_previous_views(fresh_cache):
     assert views.load_view(good["key"]) is not None  # the previous result is intact
 
 
-def test_maps_view(fresh_cache):
+def test_maps_view(cache_dir):
     state, notices = views.parse_query("maps", {"speeds": "1200:1600:200", "torques": "100,300", "duration": SHORT,
                                                 "window": "0.5", "fmin": "30", "fmax": "120"})
     assert notices == []
@@ -302,7 +294,7 @@ def test_maps_view(fresh_cache):
     assert views.maps_view(system, state, cache_only=True)["from_cache"]
 
 
-def test_maps_view_needs_two_torques(fresh_cache):
+def test_maps_view_needs_two_torques(cache_dir):
     state, _ = views.parse_query("maps", {"speeds": "1200,1400", "torques": "200", "duration": SHORT, "window": "0.5"})
     with pytest.raises(InputError, match="at least two torques"):
         views.maps_view(views.resolve_system(state["params"]), state, executor="serial")
@@ -322,14 +314,14 @@ def test_parameters_view_rows_and_changes():
     assert "accepted" in rows["solver.outer_segments"] and "[4, 200]" in rows["solver.outer_segments"]["accepted"]
 
 
-def test_uploaded_parameter_file_round_trip(fresh_cache):
+def test_uploaded_parameter_file_round_trip(cache_dir):
     system = dampersim.parameters.with_updates(dampersim.default_parameters(), {"outer.spring.stiffness": 140.0})
     loaded = views.parse_uploaded_parameters(_upload(views.parameters_toml(system)), "mine.toml")
     params = views.params_for_system(loaded)
     assert params == {"set": None, "overrides": {"outer.spring.stiffness": 140.0}}
 
 
-def test_uploaded_set_with_another_structure_is_stored(fresh_cache):
+def test_uploaded_set_with_another_structure_is_stored(cache_dir):
     import dataclasses
 
     base = dampersim.default_parameters()
@@ -374,7 +366,7 @@ def test_table_edits_apply_or_refuse():
     assert new["overrides"] == {"inertias.primary": 0.3}  # unchanged by the refused edit
 
 
-def test_sweep_registry_counts_running_sweeps(fresh_cache):
+def test_sweep_registry_counts_running_sweeps(cache_dir):
     a, b = views.SweepRegistry(), views.SweepRegistry()
     a.start("colourmap", 10)
     b.start("maps", 5)
@@ -394,7 +386,7 @@ def test_view_key_survives_a_json_round_trip_of_the_state():
     assert views.view_key("maps", system, through_browser) == views.view_key("maps", system, state)
 
 
-def test_segments_display_options_reuse_the_simulation(fresh_cache, monkeypatch):
+def test_segments_display_options_reuse_the_simulation(cache_dir, monkeypatch):
     state, _ = views.parse_query("segments", {"duration": SHORT, "span": "0.02"})
     system = views.resolve_system(state["params"])
     first = views.segments_view(system, state)

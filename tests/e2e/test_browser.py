@@ -256,6 +256,7 @@ def test_bad_query_values_show_a_notice_and_fall_back(server, page):
     assert "speeds='fast'" in page.locator("#colourmap-link-notices").inner_text()
 
 
+@pytest.mark.slow
 def test_cancelled_sweep_and_two_tabs(server, browser):
     context = browser.new_context(viewport=VIEWPORT)
     try:

@@ -77,6 +77,7 @@ def test_worker_with_other_source_is_refused(cluster, cache_dir, monkeypatch):
         run_sweep(system, points, scheduler=cluster.scheduler_address, cache=False, **SHORT)
 
 
+@pytest.mark.slow  # waits out the 5 s connection timeout
 def test_unreachable_scheduler_fails_fast_with_its_address(cache_dir):
     system = default_parameters()
     t0 = time.perf_counter()
@@ -85,6 +86,7 @@ def test_unreachable_scheduler_fails_fast_with_its_address(cache_dir):
     assert time.perf_counter() - t0 < 15
 
 
+@pytest.mark.slow  # waits out the 5 s connection timeout
 def test_sweep_command_with_unreachable_scheduler_from_environment(cache_dir, tmp_path, monkeypatch):
     monkeypatch.setenv("DAMPERSIM_SCHEDULER", UNREACHABLE)
     parser = argparse.ArgumentParser(prog="dampersim")

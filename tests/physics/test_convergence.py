@@ -16,7 +16,6 @@ def _orders(system, rpm):
     return simulate(system, ex, record_segments=False).order_amplitudes()[1]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("rpm", [1500, 2500])
 def test_halving_the_time_step(rpm):
     a = _orders(P, rpm)
@@ -29,7 +28,6 @@ def test_halving_the_time_step(rpm):
         assert b[5] == pytest.approx(a[5], rel=0.01)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("rpm", [1500, 2500])
 def test_default_segments_against_fine_discretisation(rpm):
     a = _orders(P, rpm)

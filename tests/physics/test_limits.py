@@ -57,7 +57,6 @@ def test_mean_torque_at_the_knee_with_ripple_is_stable(offset):
     assert res.output_torque[w].std() < 20.0
 
 
-@pytest.mark.slow
 def test_knee_crossing_point_has_no_subharmonics():
     # 350 +- 300 N m at 2000 rpm drives the outer set into its stop every cycle. A
     # bouncing contact (restitution ~0.6) once made this point period-doubled, with

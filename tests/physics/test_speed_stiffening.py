@@ -1,7 +1,6 @@
 """Speed stiffening of the outer set at small vibration angles ([thesis] §7.3.2)."""
 
 import numpy as np
-import pytest
 
 from dampersim import OrderSum, default_parameters, simulate
 from dampersim.signal import order_amplitudes
@@ -24,7 +23,6 @@ def _run(rpm, amplitude):
     return a_t / a_w, np.degrees(2 * a_w), comp.max(axis=0) - comp.min(axis=0)
 
 
-@pytest.mark.slow
 def test_stiffness_rises_with_speed_far_more_at_small_angles():
     k_small_500, ang_500, comp_500 = _run(500, 20.0)
     k_small_3000, ang_3000, comp_3000 = _run(3000, 50.0)
