@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 from dampersim.errors import ParameterError
 from dampersim.parameters.model import param
+from dampersim.parameters.validation import check_fields
 
 BAR = 1.0e5  # Pa per bar
 
@@ -155,9 +156,7 @@ class PulsationGenerator:
 
 def validate_engine(pg: PulsationGenerator) -> PulsationGenerator:
     """Check every field's bounds (ParameterError naming the field) and the chain."""
-    from dampersim.parameters.validation import _check_fields
-
-    _check_fields(pg)
+    check_fields(pg)
     if len(pg.crank_dofs) != pg.geometry.cylinders:
         raise ParameterError("chain", [e.name for e in pg.chain], f"{pg.geometry.cylinders} elements named crank1..crank4")
     names = [e.name for e in pg.chain]

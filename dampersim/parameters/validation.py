@@ -31,16 +31,18 @@ def describe_range(meta) -> str:
     return "a finite value"
 
 
-def _check_fields(obj, prefix=""):
+def check_fields(obj, prefix=""):
+    """Check every field of the dataclass ``obj`` (recursively) against the bounds its
+    metadata declares; ParameterError names the dotted field (``prefix`` + name)."""
     for f in dataclasses.fields(obj):
         v = getattr(obj, f.name)
         path = f"{prefix}{f.name}"
         if dataclasses.is_dataclass(v):
-            _check_fields(v, path + ".")
+            check_fields(v, path + ".")
             continue
         if isinstance(v, tuple):
             for i, e in enumerate(v):
-                _check_fields(e, f"{path}[{i}].")
+                check_fields(e, f"{path}[{i}].")
             continue
         meta = f.metadata
         kind = meta.get("kind")
@@ -117,7 +119,7 @@ def validate(system: m.DamperSystem) -> m.DamperSystem:
     for part in ("outer", "pair_outer", "pair_inner"):
         if getattr(system.friction, part) is None:
             raise ParameterError(f"friction.{part}", None, "a table with alpha (and optional preload)")
-    _check_fields(system)
+    check_fields(system)
     _check_set(system.outer, "outer")
     _check_set(system.inner, "inner")
     total = system.friction.alpha_sec + system.friction.alpha_ter
