@@ -205,7 +205,6 @@ class SimulationResult:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-
         frame = self.to_frame()
         columns = {}
         for name in frame.columns:
@@ -254,7 +253,6 @@ class SimulationResult:
 
         import pyarrow.parquet as pq
 
-
         shown = os.fspath(path)
         accepted = (f"accepted is a Parquet file written by SimulationResult.save "
                     f"({RESULT_FORMAT} version {RESULT_FORMAT_VERSION})")
@@ -280,7 +278,6 @@ class SimulationResult:
     def _from_parquet(cls, pf, meta, bad):
         """The result in an open ``pyarrow.parquet.ParquetFile`` with schema metadata
         ``meta``; ``bad(what)`` makes the InputError naming the file."""
-
 
         if _META_KEY not in meta:
             raise bad("has no dampersim.result metadata (only a plain table, e.g. from an older simulate --out)")
@@ -381,7 +378,6 @@ def _to_json(obj):
     (little-endian, bit-exact), non-finite floats as {"$float": "nan" | "inf" | "-inf"},
     tuples as lists; floats keep their repr, which reads back to the same double."""
 
-
     if isinstance(obj, dict):
         return {str(k): _to_json(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -447,7 +443,6 @@ def _array(value, name, ndim) -> np.ndarray:
 
 
 def _spring_to_dict(spring) -> dict:
-
     return {f.name: getattr(spring, f.name) for f in dataclasses.fields(spring)}
 
 
@@ -456,7 +451,6 @@ def _spring_from_dict(d):
 
 
 def _parameters_to_dict(parameters):
-
     if parameters is None:
         return None
     if not isinstance(parameters, DamperSystem):
@@ -465,12 +459,10 @@ def _parameters_to_dict(parameters):
 
 
 def _parameters_from_dict(data):
-
     return None if data is None else system_from_dict(data)
 
 
 def _excitation_classes() -> dict:
-
     return {c.__name__: c for c in (OrderSum, TorqueRamp, MeasuredTorque)}
 
 

@@ -139,7 +139,6 @@ class HysteresisLoop:
 
 
 def _ramp(protocol, speed_rad_s, rate, hold):
-
     if isinstance(protocol, str):
         return protocol, ramp_protocol(protocol, speed_rad_s, rate=rate, hold=hold)
     try:

@@ -323,7 +323,6 @@ def write_campaign(path, points, name: str = "", description: str = "", fmt: str
     """
     import pandas as pd
 
-
     if fmt not in ("parquet", "csv"):
         raise InputError(f"format {fmt!r}: accepted is parquet or csv")
     os.makedirs(os.path.join(path, "points"), exist_ok=True)

@@ -85,7 +85,6 @@ class PulsationResult:
         return slice(max(0, len(self.t) - n), len(self.t))
 
     def order_amplitudes(self, orders=DEFAULT_ORDERS, which="output", seconds=ANALYSIS_WINDOW) -> np.ndarray:
-
         x = {"output": self.output_torque, "damper_output": self.damper_output_torque, "gas": self.gas_torque}[which]
         return np.asarray(order_amplitudes(x[self.window(seconds)], self.sample_rate, self.speed, orders))
 

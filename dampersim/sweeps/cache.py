@@ -105,7 +105,6 @@ except Exception:
 
 
 def _excitation_of(point_or_excitation):
-
     if isinstance(point_or_excitation, TestPoint):
         return point_or_excitation.excitation()
     return point_or_excitation

@@ -424,7 +424,6 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
 
 
 def _assemble(points, keys, records, cached_keys, orders, executor, wall):
-
     orders_arr = np.asarray(orders, dtype=float)
     n_o = orders_arr.size
     cols = {c: [] for c in TABLE_COLUMNS}
