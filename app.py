@@ -50,7 +50,7 @@ def create_app():
     import dampersim
     from dampersim.plotting import register_template
     from dampersim.views.state import PAGE_PATHS, page_href
-    from dampersim.views.store import cache_dir
+    from dampersim.locations import cache_dir
 
     register_template(make_default=True)
     cache_root = cache_dir()

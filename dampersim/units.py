@@ -1,6 +1,8 @@
-"""Unit conversions used at the edges (CLI, UI, files); the library itself is SI."""
+"""Unit conversions and number text used at the edges (CLI, UI, links, files); the library itself is SI."""
 
 import math
+
+import numpy as np
 
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 DEG_TO_RAD = math.pi / 180.0
@@ -40,3 +42,18 @@ def pa_to_bar(pa):
 def order_frequency_hz(order, omega):
     """Frequency [Hz] of engine order ``order`` at shaft speed ``omega`` [rad/s]."""
     return order * omega / (2.0 * math.pi)
+
+
+def number_text(v) -> str:
+    """Compact, exact text of a number (1500, 0.22, 1e-05): the same text in figure labels,
+    links and messages."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        if math.isfinite(v) and v.is_integer() and abs(v) < 1e15:
+            return str(int(v))
+        return repr(v)
+    return str(v)

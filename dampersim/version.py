@@ -1,4 +1,4 @@
-"""The package version, in a module of its own so that any layer can read it without
-importing the package root (which loads the simulation stack)."""
+"""The package version, in a module of its own: a layer that imported the package root for
+it would, by the layer contract's reading, import everything the root re-exports."""
 
 __version__ = "0.1.0"

@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 
 from dampersim.errors import InputError
-from dampersim.parameters import load_parameters
+from dampersim.parameters import load_parameters, parse_set_options
 from dampersim.solver.linear import check_time_step
 
 #: Shaft speeds [rpm] the commands accept.
@@ -49,8 +49,6 @@ def parameter_updates(args) -> dict:
     ``--set`` items come first; a shorthand given as well wins over a ``--set`` of the
     same name. Options the command does not have count as not given.
     """
-    from dampersim.parameters import parse_set_options
-
     updates = parse_set_options(getattr(args, "set", None))
     if getattr(args, "no_friction", False):
         updates["friction.enabled"] = False

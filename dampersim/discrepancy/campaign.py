@@ -315,11 +315,14 @@ def _read_point(fpath, rel, pid, kind, rpm, tq, fs):
     ), []
 
 
-def write_campaign(path, points, name: str = "", description: str = "", fmt: str = "parquet") -> None:
+def write_campaign(path, points, name: str = "", description: str = "", fmt: str = "parquet",
+                   metadata: dict | None = None, point_columns: dict | None = None) -> None:
     """Write ``points`` (list of MeasuredPoint) as a campaign folder; every file atomic.
 
     Series are stored as float32 (``fmt`` 'parquet' or 'csv'). Existing files of the same
-    names are replaced atomically; other files are left alone.
+    names are replaced atomically; other files are left alone. ``metadata``: further
+    entries of campaign.json (e.g. where the data came from); ``point_columns``: {point id:
+    {column: value}}, extra manifest columns (readers ignore columns they do not know).
     """
     import pandas as pd
 
@@ -344,10 +347,11 @@ def write_campaign(path, points, name: str = "", description: str = "", fmt: str
         else:
             write_text_atomic(os.path.join(path, rel), df.to_csv(index=False, float_format="%.6g"))
         rows.append({"id": p.id, "kind": p.kind, "speed_rpm": p.speed_rpm, "mean_torque_nm": p.mean_torque_nm,
-                     "file": rel, "sample_rate_hz": p.sample_rate_hz})
-    write_text_atomic(os.path.join(path, MANIFEST), pd.DataFrame(rows, columns=list(MANIFEST_COLUMNS)).to_csv(index=False))
-    write_text_atomic(os.path.join(path, "campaign.json"),
-                      json.dumps({"name": name or os.path.basename(os.path.abspath(path)), "description": description}, indent=2))
+                     "file": rel, "sample_rate_hz": p.sample_rate_hz, **(point_columns or {}).get(p.id, {})})
+    columns = list(MANIFEST_COLUMNS) + [c for c in dict.fromkeys(k for r in rows for k in r) if c not in MANIFEST_COLUMNS]
+    write_text_atomic(os.path.join(path, MANIFEST), pd.DataFrame(rows, columns=columns).to_csv(index=False))
+    meta = {"name": name or os.path.basename(os.path.abspath(path)), "description": description, **(metadata or {})}
+    write_text_atomic(os.path.join(path, "campaign.json"), json.dumps(meta, indent=2))
 
 
 __all__ = ["MANIFEST", "MANIFEST_COLUMNS", "SERIES_COLUMNS", "KINDS", "Problem", "MeasuredPoint", "Campaign",

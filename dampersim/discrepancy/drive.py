@@ -13,9 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dampersim.signal import order_amplitudes
 from dampersim.excitation import MeasuredTorque
-from dampersim.signal import lowpass_first_order
+from dampersim.signal import lowpass_first_order, order_amplitudes
 from dampersim.simulation import simulate
 from dampersim.solver.linear import max_stable_time_step
 from dampersim.sweeps.backends import process_pool
@@ -123,7 +122,6 @@ class Runner:
 
     def __enter__(self):
         if self.workers > 1:
-
             self._pool = process_pool(self.workers)
         return self
 

@@ -198,7 +198,6 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
         fs = sample_rate if kind == "torsional" else ramp_sample_rate
         tasks.append((system, pid, kind, rpm, tq, seed * 1000 + i, record, fs, noise, gains))
     if workers > 1 and len(tasks) > 1:
-
         with process_pool(workers) as pool:
             measured = list(pool.map(_simulate_truth, tasks))
     else:
@@ -216,7 +215,6 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
         "points": [p[0] for p in pts],
     }
     if truth is not None:
-
         write_text_atomic(truth, json.dumps(doc, indent=2))
     return doc
 

@@ -8,8 +8,6 @@ file beside it holding the file and campaign names.
 
 from __future__ import annotations
 
-import base64
-import binascii
 import hashlib
 import io
 import json
@@ -24,6 +22,7 @@ from pathlib import Path, PurePosixPath
 
 from dampersim.discrepancy.campaign import MANIFEST, paths_outside, read_campaign
 from dampersim.errors import InputError
+from dampersim.uploads import decode_upload
 
 #: Largest campaign zip accepted [bytes] (the dashboard's server refuses requests above
 #: 16 MB and the browser sends the file base64-encoded, 4/3 of its size).
@@ -38,27 +37,6 @@ CAMPAIGN_ACCEPTED = (f"a .zip (up to {MAX_CAMPAIGN_ZIP_BYTES // 2**20} MB) of on
                      "(.parquet or .csv) and optionally campaign.json (see docs/discrepancy.md)")
 #: An upload id: 16 hex digits.
 UPLOAD_ID = re.compile(r"^[0-9a-f]{16}$")
-
-
-def decode_upload(contents, name: str, accepted: str, max_bytes: int, size_text, *, size_accepted: str | None = None,
-                  base64_accepted: bool = True) -> bytes:
-    """The bytes of a browser upload (``data:...;base64,...``).
-
-    Raises InputError naming the file (``name``) for an upload without content, data
-    that is not base64 and more than ``max_bytes`` bytes (``size_text(n)`` writes the size,
-    ``size_accepted`` replaces ``accepted`` in that message); ``base64_accepted=False``
-    leaves "accepted is ..." out of the base64 message.
-    """
-    if not isinstance(contents, str) or "," not in contents:
-        raise InputError(f"{name}: the upload arrived without content; accepted is {accepted}")
-    try:
-        data = base64.b64decode(contents.split(",", 1)[1], validate=True)
-    except (binascii.Error, ValueError):
-        raise InputError(f"{name}: the upload is not valid base64 data"
-                         + (f"; accepted is {accepted}" if base64_accepted else "")) from None
-    if len(data) > max_bytes:
-        raise InputError(f"{name} is {size_text(len(data))}; accepted is {size_accepted or accepted}")
-    return data
 
 
 def _manifest_dirs(root: Path) -> list:

@@ -11,14 +11,13 @@ Figure builders take SI data and convert only for display, explicitly through
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import plotly.graph_objects as go
 import plotly.io as pio
 
 from dampersim.errors import InputError
-from dampersim.units import rad_s_to_rpm, rad_to_deg
+from dampersim.units import number_text, rad_s_to_rpm, rad_to_deg
 
 TEMPLATE_NAME = "dampersim"
 
@@ -155,21 +154,6 @@ def speed_title(speed_unit: str) -> str:
 def order_text(k: float) -> str:
     """Short label of an engine order ("2", "1.5")."""
     return f"{k:g}"
-
-
-def number_text(v) -> str:
-    """Compact, exact text of a number (1500, 0.22, 1e-05): the same text in figure labels,
-    links and messages."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        v = float(v)
-        if math.isfinite(v) and v.is_integer() and abs(v) < 1e15:
-            return str(int(v))
-        return repr(v)
-    return str(v)
 
 
 def apply(fig: go.Figure, title: str | None = None, height: int | None = None) -> go.Figure:

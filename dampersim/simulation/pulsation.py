@@ -212,13 +212,17 @@ def pulsation_excitation(result: PulsationResult):
 
 
 def dominant_order_over_speed(speeds_rpm, pressure_bar=2.5, mean_torque=200.0, coupled=False, orders=(2.0, 4.0, 6.0),
-                              **kw) -> list:
-    """[(rpm, dominant order, amplitudes)] over a speed list ([thesis] Fig. 4.12)."""
+                              progress=None, **kw) -> list:
+    """[(rpm, dominant order, amplitudes [N m])] over a speed list [rpm] ([thesis] Fig. 4.12);
+    ``progress(done, total)`` is called after each speed."""
+    speeds_rpm = list(speeds_rpm)
     out = []
-    for rpm in speeds_rpm:
+    for i, rpm in enumerate(speeds_rpm):
         res = simulate_pulsation(rpm_to_rad_s(rpm), pressure_bar, mean_torque, coupled, **kw)
         amp = res.order_amplitudes(orders)
         out.append((float(rpm), float(orders[int(np.argmax(amp))]), [float(a) for a in amp]))
+        if progress is not None:
+            progress(i + 1, len(speeds_rpm))
     return out
 
 

@@ -17,13 +17,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from dampersim.errors import SimulationDiverged
+from dampersim.parameters import default_parameters
 from dampersim.solver.engine_layout import E_DT, NEREC, EngineLayout
 from dampersim.solver.kernels.engine import engine_integrate
 from dampersim.solver.kernels.excitation import order_sum
 from dampersim.solver.kernels.integrate import integrate
-from dampersim.solver.layout import NREC, P_DT, Layout, initial_state
-from dampersim.parameters import default_parameters
-from dampersim.solver.layout import build_layout
+from dampersim.solver.layout import NREC, P_DT, Layout, build_layout, initial_state
 
 #: status codes of the integrators -> what diverged
 STATUS = {1: "NaN in the state", 2: "runaway speed", 3: "windup far beyond a hardstop"}
@@ -78,7 +77,6 @@ def ensure_compiled(lay: Layout | None = None) -> float:
         return 0.0
     t0 = time.perf_counter()
     if lay is None:
-
         lay = build_layout(default_parameters(), 100.0)
     q, v = initial_state(lay)
     _integrate(lay, q, v, np.zeros(1), 1, 1, np.zeros((1, NREC)), np.zeros((1, lay.n_nodes)), None)

@@ -11,7 +11,8 @@ import numpy as np
 
 from dampersim.errors import InputError
 from dampersim import keys
-from dampersim.sweeps.cache import cache_dir, key_parts
+from dampersim.locations import cache_dir
+from dampersim.sweeps.cache import key_parts
 from dampersim.sweeps.backends import cpu_count, process_pool
 from dampersim.sweeps.executor import SweepCancelled, run_sweep
 from dampersim.sweeps.grid import TestPoint

@@ -46,7 +46,6 @@ PRIMARY = (2.0, 4.0, 6.0)
 
 def _default(system):
     if system is None:
-
         return default_parameters()
     return system
 

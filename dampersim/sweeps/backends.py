@@ -38,10 +38,11 @@ WORKER_WAIT = 30.0
 
 
 # --------------------------------------------------------------------------- worker side
-def environment() -> tuple:
+def environment(source: str | None = None) -> tuple:
     """What a worker must share with the parent for its result to match the key: the
-    package version, the source hash and the platform (library versions, CPU target)."""
-    return (__version__, _cache.kernel_source_hash(), keys.digest(keys.platform()))
+    package version, the source hash (``source``: the parent's pinned one; default this
+    process's) and the platform (library versions, CPU target)."""
+    return (__version__, _cache.kernel_source_hash() if source is None else source, keys.digest(keys.platform()))
 
 
 def compute_task(system, point, duration, window, key, expected_env):

@@ -34,14 +34,13 @@ import numpy as np
 
 from dampersim import keys
 from dampersim.errors import InputError
+from dampersim.locations import CACHE_DIR_ENV, cache_dir, repo_root
 from dampersim.parameters import to_dict
 from dampersim.results import ANALYSIS_WINDOW
 from dampersim.signal import amplitude_spectrum, order_amplitudes
 from dampersim.simulation import natural_duration, simulate
 from dampersim.sweeps.grid import TestPoint
 
-#: Environment variable naming the cache directory (read at call time).
-CACHE_DIR_ENV = "DAMPERSIM_CACHE_DIR"
 #: Sub-directory of the cache directory that holds sweep results.
 RESULTS_SUBDIR = "results"
 #: Engine orders stored per point: 0.5, 1.0, ..., 8.0 ([thesis] §3.4, half orders on request).
@@ -59,19 +58,6 @@ _DIGEST = 32
 
 
 # --------------------------------------------------------------------------- location
-def repo_root() -> Path:
-    """Directory that contains the ``dampersim`` package (the repository in a checkout)."""
-    return keys.PACKAGE_DIR.parent
-
-
-def cache_dir() -> Path:
-    """Absolute cache directory: ``$DAMPERSIM_CACHE_DIR`` if set (read now), else
-    ``cache/`` at the repository root. Sweep results live in its ``results`` folder."""
-    env = os.environ.get(CACHE_DIR_ENV, "").strip()
-    base = Path(env).expanduser() if env else repo_root() / "cache"
-    return Path(os.path.abspath(base))
-
-
 def results_dir() -> Path:
     """Absolute directory of the sweep result cache (``cache_dir() / "results"``)."""
     return cache_dir() / RESULTS_SUBDIR
@@ -435,6 +421,7 @@ __all__ = [
     "PointRecord",
     "ResultCache",
     "cache_dir",
+    "repo_root",
     "results_dir",
     "cache_key",
     "key_document",

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from dampersim import keys as _keys
 from dampersim.analysis.colourmap import SWEEP_COLUMNS
 from dampersim.errors import DampersimError, InputError
 from dampersim.fileio import write_parquet_atomic
@@ -34,8 +33,7 @@ from dampersim.parameters import validate
 from dampersim.results import ANALYSIS_WINDOW
 from dampersim.solver.linear import check_time_step
 from dampersim.sweeps import cache as _cache
-from dampersim.sweeps.backends import SCHEDULER_ENV, DaskBackend, PoolBackend, compute_task, cpu_count
-from dampersim.version import __version__
+from dampersim.sweeps.backends import SCHEDULER_ENV, DaskBackend, PoolBackend, compute_task, cpu_count, environment
 from dampersim.sweeps.grid import TestPoint
 from dampersim.analysis.metrics import magnification_ratio
 from dampersim.units import rad_s_to_rpm
@@ -315,7 +313,7 @@ def run_sweep(
 def _run(system, points, executor, address, workers, progress, is_cancelled,
          duration, window, orders, store, t_start):
     source = _cache.kernel_source_hash()
-    env = (__version__, source, _keys.digest(_keys.platform()))
+    env = environment(source)
     keys = tuple(_cache.cache_key(system, p, duration, window, source_hash=source) for p in points)
     slots_of: dict[str, list[int]] = {}
     for i, k in enumerate(keys):
@@ -355,8 +353,16 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                 progress(state["done"], total, n_from_cache)
             return None
         if status == "mismatch":
+            theirs = outcome[1]
+            if tuple(theirs[:2]) == tuple(env[:2]):
+                return InputError(
+                    "a worker runs the same dampersim on another platform (numpy/scipy/numba/llvmlite "
+                    "version or CPU target; results are keyed by the platform, since fast-math rounding "
+                    "differs between them): run the sweep on workers of this machine's kind, or "
+                    "with executor='processes'"
+                )
             return InputError(
-                f"a worker runs dampersim {outcome[1][0]} with kernel source {outcome[1][1][:12]}, "
+                f"a worker runs dampersim {theirs[0]} with kernel source {theirs[1][:12]}, "
                 f"this process {env[0]} with {env[1][:12]}; its results would not match the cache "
                 "key: run the same dampersim on every worker (and restart processes that loaded "
                 "dampersim before its source changed)"

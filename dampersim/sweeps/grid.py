@@ -83,7 +83,6 @@ def _normalise_orders(orders) -> tuple:
     if orders is None:
         return ()
     if isinstance(orders, str):
-
         return parse_orders(orders)
     out = []
     seen = set()

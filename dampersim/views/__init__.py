@@ -8,15 +8,18 @@ One module per concern: :mod:`~dampersim.views.state` (page state in the URL),
 computation: :mod:`~dampersim.views.explorer`, :mod:`~dampersim.views.segments`,
 :mod:`~dampersim.views.sweeps` (Colourmap and Maps), :mod:`~dampersim.views.hysteresis`,
 :mod:`~dampersim.views.pulsation`, :mod:`~dampersim.views.studies` and
-:mod:`~dampersim.views.discrepancy`. A view returns JSON-ready data: Plotly figures as
-dicts (built by :mod:`dampersim.plotting`), tables and summary figures.
+:mod:`~dampersim.views.discrepancy`. Page views return figures (built by :mod:`dampersim.plotting`), tables
+and summary figures; the cached ones (explorer, segments, sweeps, hysteresis, discrepancy)
+hold their figures as JSON-ready dicts, the uncached Pulsation and Studies views return
+Plotly figure objects.
 
 The names below are re-exported for scripts and notebooks; pages import from the
 specific modules.
 """
 
 from dampersim.views.notices import notice
-from dampersim.views.store import cache_dir, close_stores, load_parameter_set, load_view, view_key
+from dampersim.locations import cache_dir
+from dampersim.views.store import close_stores, load_parameter_set, load_view, view_key
 from dampersim.views.params import (
     KEY_PARAMETERS,
     MAX_UPLOAD_BYTES,

@@ -33,7 +33,7 @@ from dampersim.discrepancy.upload import CAMPAIGN_ACCEPTED, UPLOAD_ID
 from dampersim.errors import InputError
 from dampersim.parameters import default_parameters
 from dampersim.plotting import discrepancy as diagnosis_plots
-from dampersim.sweeps.cache import repo_root
+from dampersim.locations import repo_root
 from dampersim.views.notices import notice, query_value
 from dampersim.views.store import cache_dir, cached_view, view_key
 
@@ -260,7 +260,7 @@ def discrepancy_key(folder, system=None) -> str:
     """Cache key of a diagnosis: campaign files, parameter set, options, code, platform and
     version (a :func:`view_key` of kind "discrepancy")."""
     state = {"format": DISCREPANCY_FORMAT, "campaign": campaign_digest(folder), "options": DISCREPANCY_OPTIONS}
-    return view_key("discrepancy", system or default_parameters(), state)
+    return view_key("discrepancy", system or default_parameters(), state, module=__name__)
 
 
 def discrepancy_figures(doc: dict) -> dict:

@@ -17,7 +17,7 @@ from dampersim.plotting import (
     windowed_spectrum_figure,
     windup_figure,
 )
-from dampersim.plotting.theme import number_text
+from dampersim.units import number_text
 from dampersim.results import ANALYSIS_WINDOW
 from dampersim.simulation import simulate
 from dampersim.units import rad_to_deg
@@ -48,7 +48,7 @@ def _energy_summary(result) -> dict:
 
 
 def _explorer_key(system, state, **_):
-    return view_key("explorer", system, state)
+    return view_key("explorer", system, state, module=__name__)
 
 
 @cached_view(_explorer_key)

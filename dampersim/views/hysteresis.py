@@ -14,7 +14,7 @@ from dampersim.analysis.hysteresis import HysteresisLoop, analyse_loop, run_loop
 from dampersim.errors import InputError
 from dampersim.excitation import PROTOCOLS, ramp_protocol
 from dampersim.plotting import hysteresis_figure, loop_energy_figure, stiffness_figure
-from dampersim.plotting.theme import number_text
+from dampersim.units import number_text
 from dampersim.sweeps.grid import parse_values
 from dampersim.units import rpm_to_rad_s
 from dampersim.views.store import cached_view, load_view, save_view, view_key
@@ -43,7 +43,7 @@ def _loop_key(system, state, rpm) -> str:
     """Key of one simulated loop: only what the simulation depends on (display options such
     as the windup shown or the low pass are applied afterwards)."""
     return view_key("hysteresis-loop", system, {"protocol": state["protocol"], "speed_rpm": float(rpm),
-                                                "rate": float(state["rate"]), "hold": float(state["hold"])})
+                                                "rate": float(state["rate"]), "hold": float(state["hold"])}, module=__name__)
 
 
 def _load_loop(key):
@@ -62,7 +62,7 @@ def _save_loop(key, loop):
 
 
 def _hysteresis_key(system, state, **_):
-    return view_key("hysteresis", system, state)
+    return view_key("hysteresis", system, state, module=__name__)
 
 
 @cached_view(_hysteresis_key)

@@ -17,11 +17,11 @@ import dataclasses
 
 import numpy as np
 
-from dampersim.discrepancy.upload import decode_upload
+from dampersim.uploads import decode_upload
 from dampersim.errors import DampersimError, InputError, ParameterError
 from dampersim.parameters import default_parameters, dotted_names, dumps_toml, loads_toml, with_updates
 from dampersim.parameters.validation import describe_range
-from dampersim.plotting.theme import number_text
+from dampersim.units import number_text
 from dampersim.solver.linear import check_time_step
 from dampersim.units import rad_to_deg
 from dampersim.views.notices import notice, parse_number, query_value

@@ -5,12 +5,10 @@ and order content with a summary line) and the dominant engine order over speed
 
 from __future__ import annotations
 
-import numpy as np
-
 from dampersim.excitation.pulsation import check_speed_rpm, pressure_warnings
 from dampersim.parameters.engine import check_pressure_bar
 from dampersim.plotting.studies import dominant_order_figure, pulsation_figures
-from dampersim.simulation import simulate_pulsation
+from dampersim.simulation import dominant_order_over_speed, simulate_pulsation
 from dampersim.units import rpm_to_rad_s
 
 #: Mean output torque of the generator runs [N m].
@@ -41,14 +39,8 @@ def pulsation_view(pressure, speed, coupled) -> dict:
 def dominant_order_view(pressure, coupled, progress=None):
     """The amplitudes of orders 2, 4 and 6 over :data:`SWEEP_SPEEDS_RPM` ([thesis] Fig. 4.12)
     as a figure; ``progress(done, total)`` after each speed."""
-    p = check_pressure_bar(pressure)
-    rows = []
-    for i, rpm in enumerate(SWEEP_SPEEDS_RPM):
-        r = simulate_pulsation(rpm_to_rad_s(rpm), p, MEAN_TORQUE_NM, coupled=bool(coupled))
-        a = r.order_amplitudes(tuple(float(k) for k in DOMINANT_ORDERS))
-        rows.append((rpm, DOMINANT_ORDERS[int(np.argmax(a))], [float(x) for x in a]))
-        if progress is not None:
-            progress(i + 1, len(SWEEP_SPEEDS_RPM))
+    rows = dominant_order_over_speed(SWEEP_SPEEDS_RPM, check_pressure_bar(pressure), MEAN_TORQUE_NM, bool(coupled),
+                                     tuple(float(k) for k in DOMINANT_ORDERS), progress=progress)
     return dominant_order_figure(rows)
 
 

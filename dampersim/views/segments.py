@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from dampersim.plotting import damper_animation_figure, segment_compression_figure
-from dampersim.plotting.theme import number_text
+from dampersim.units import number_text
 from dampersim.simulation import simulate
 from dampersim.units import rad_to_deg
 from dampersim.views.state import point_excitation
@@ -22,7 +22,7 @@ SIMULATION_KEYS = ("speed", "torque", "orders", "duration")
 
 
 def _segments_key(system, state, **_):
-    return view_key("segments", system, state)
+    return view_key("segments", system, state, module=__name__)
 
 
 @cached_view(_segments_key)
@@ -32,7 +32,7 @@ def segments_view(system, state: dict, use_cache: bool = True) -> dict:
     t0 = time.perf_counter()
     ex = point_excitation(state)
     # the simulation is cached apart from the display options (spring, windows, gain)
-    sim_key = view_key("segments-simulation", system, {k: state[k] for k in SIMULATION_KEYS})
+    sim_key = view_key("segments-simulation", system, {k: state[k] for k in SIMULATION_KEYS}, module=__name__)
     res = load_entry(sim_key) if use_cache else None
     if res is None or not hasattr(res, "nodes"):
         res = simulate(system, ex, duration=float(state["duration"]), record_segments=True)

@@ -20,7 +20,7 @@ from urllib.parse import quote
 
 from dampersim.errors import InputError
 from dampersim.excitation import PROTOCOLS, OrderSum, parse_orders
-from dampersim.plotting.theme import number_text
+from dampersim.units import number_text
 from dampersim.sweeps.grid import parse_values
 from dampersim.units import deg_to_rad, rpm_to_rad_s
 from dampersim.views.notices import notice, parse_number, query_value

@@ -24,9 +24,9 @@ import numpy as np
 from dampersim import keys
 from dampersim.errors import InputError
 from dampersim.parameters import dumps_toml, to_dict
-from dampersim.sweeps.cache import cache_dir
+from dampersim.locations import cache_dir
 
-#: Sub-directories of :func:`dampersim.sweeps.cache.cache_dir` used here.
+#: Sub-directories of :func:`dampersim.locations.cache_dir` used here.
 VIEWS_SUBDIR = "views"
 SETS_SUBDIR = "parameter-sets"
 #: Size limit of the view cache [bytes].
@@ -35,9 +35,6 @@ VIEWS_SIZE_LIMIT = 2 * 2**30
 VIEW_FORMAT = 1
 #: Labels of a parameter set, not physics: never part of a key, never carried as overrides.
 LABEL_NAMES = ("name", "source")
-#: The package whose code (with everything it imports, the diagnosis included) shapes a
-#: page view: its import closure is hashed into every view key.
-VIEWS_MODULE = "dampersim.views"
 
 _STORES: dict = {}
 
@@ -72,11 +69,13 @@ def close_stores() -> None:
 
 
 # --------------------------------------------------------------------------- keys
-def view_key(kind: str, system, state: dict) -> str:
+def view_key(kind: str, system, state: dict, *, module: str) -> str:
     """SHA-256 key of a view (:func:`dampersim.keys.make_key`): kind, complete parameter set
     (labels excluded), page state (without the parameter state, which ``system`` already
-    holds), package version, platform and the source of every module the views reach
-    through imports (figures, analysis, simulation, diagnosis)."""
+    holds), package version, platform and the source of ``module`` (the view module that
+    computes it: pass ``__name__``) with every module it reaches through imports
+    (figures, analysis, simulation, diagnosis). Editing one page's view module therefore
+    leaves the other pages' cached views, and a cached diagnosis, valid."""
     parts = {
         "format": VIEW_FORMAT,
         "kind": kind,
@@ -85,7 +84,7 @@ def view_key(kind: str, system, state: dict) -> str:
         "state": {k: (float(v) if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) else v)
                   for k, v in state.items() if k != "params"},
     }
-    return keys.make_key("dampersim.view", VIEWS_MODULE, parts)
+    return keys.make_key("dampersim.view", module, parts)
 
 
 # --------------------------------------------------------------------------- entries
@@ -185,7 +184,6 @@ __all__ = [
     "SETS_SUBDIR",
     "VIEW_FORMAT",
     "LABEL_NAMES",
-    "cache_dir",
     "view_store",
     "close_stores",
     "view_key",

@@ -21,7 +21,7 @@ from dampersim.plotting import (
     magnification_map_figure,
     order_cut_figure,
 )
-from dampersim.plotting.theme import number_text
+from dampersim.units import number_text
 from dampersim.sweeps.cache import ResultCache, cache_key, kernel_source_hash
 from dampersim.sweeps.executor import SweepCancelled, run_sweep
 from dampersim.sweeps.grid import make_grid, parse_range, parse_torques
@@ -162,7 +162,7 @@ def _sweep_summary(result) -> dict:
 
 # --------------------------------------------------------------------------- colourmap
 def _colourmap_key(system, state, **_):
-    return view_key("colourmap", system, state)
+    return view_key("colourmap", system, state, module=__name__)
 
 
 @cached_view(_colourmap_key)
@@ -211,7 +211,7 @@ def colourmap_view(system, state: dict, progress=None, cancel=None, cache_only: 
 
 # --------------------------------------------------------------------------- maps
 def _maps_key(system, state, **_):
-    return view_key("maps", system, state)
+    return view_key("maps", system, state, module=__name__)
 
 
 @cached_view(_maps_key)

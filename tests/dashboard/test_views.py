@@ -189,7 +189,7 @@ def test_explorer_view_and_its_cache(cache_dir):
     assert again["orders"] == view["orders"]
     # another parameter value is another view
     state2 = _explorer_state(speed="1800", torque="150", orders="2:300,4:100@90", **{"inertias.primary": "0.25"})
-    assert views.view_key("explorer", views.resolve_system(state2["params"]), state2) != view["key"]
+    assert views.view_key("explorer", views.resolve_system(state2["params"]), state2, module=views.explorer.__name__) != view["key"]
 
 
 def test_explorer_view_reports_a_failed_simulation_clearly(cache_dir):
@@ -383,7 +383,7 @@ def test_view_key_survives_a_json_round_trip_of_the_state():
     system = views.resolve_system(state["params"])
     through_browser = json.loads(json.dumps({k: (int(v) if isinstance(v, float) and v.is_integer() else v) for k, v in state.items()}))
     assert through_browser["fmin"] == 30 and isinstance(through_browser["fmin"], int)
-    assert views.view_key("maps", system, through_browser) == views.view_key("maps", system, state)
+    assert views.view_key("maps", system, through_browser, module=views.sweeps.__name__) == views.view_key("maps", system, state, module=views.sweeps.__name__)
 
 
 def test_segments_display_options_reuse_the_simulation(cache_dir, monkeypatch):

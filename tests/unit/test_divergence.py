@@ -21,7 +21,7 @@ def test_nan_input_is_rejected_before_running():
         OrderSum(speed=150.0, mean_torque=float("nan"))
 
 
-def test_unstable_step_is_refused_by_validation():
+def test_unstable_step_is_refused_by_the_solver_check():
     from dampersim.errors import ParameterError
 
     with pytest.raises(ParameterError) as e:

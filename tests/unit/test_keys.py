@@ -77,11 +77,24 @@ def test_platform_names_the_libraries_and_cpu_that_shape_numbers():
 
 
 def test_view_keys_cover_figures_analysis_and_the_diagnosis():
-    covered = keys.module_closure("dampersim.views")
-    for name in ("dampersim.plotting.traces", "dampersim.plotting.colourmaps", "dampersim.analysis.maps",
-                 "dampersim.discrepancy.diagnose", "dampersim.discrepancy.report", "dampersim.signal",
-                 "dampersim.solver.kernels.integrate"):
-        assert name in covered, name
+    explorer = keys.module_closure("dampersim.views.explorer")
+    for name in ("dampersim.plotting.traces", "dampersim.plotting.spectra", "dampersim.analysis.order_table",
+                 "dampersim.signal", "dampersim.solver.kernels.integrate", "dampersim.views.store"):
+        assert name in explorer, name
+    diagnosis = keys.module_closure("dampersim.views.discrepancy")
+    for name in ("dampersim.discrepancy.diagnose", "dampersim.discrepancy.report", "dampersim.discrepancy.drive",
+                 "dampersim.plotting.discrepancy", "dampersim.solver.kernels.effects"):
+        assert name in diagnosis, name
+
+
+def test_another_page_edited_leaves_a_cached_diagnosis_valid(package_copy):
+    before = keys.source_hash_at("dampersim.views.discrepancy", package_copy)
+    path = package_copy / "views" / "studies.py"
+    path.write_text(path.read_text() + "\n# changed\n")
+    assert keys.source_hash_at("dampersim.views.discrepancy", package_copy) == before
+    path = package_copy / "discrepancy" / "diagnose.py"
+    path.write_text(path.read_text() + "\n# changed\n")
+    assert keys.source_hash_at("dampersim.views.discrepancy", package_copy) != before
 
 
 def test_study_runs_are_keyed_by_the_study_code(package_copy):

@@ -60,9 +60,10 @@ def test_round_trip_is_exact(result, tmp_path):
 
 
 def test_file_is_the_simulate_out_table_plus_series(result, tmp_path):
-    """The time series table of simulate --out, column for column, then the remaining series."""
+    """The result's time series table (the one simulate --out wrote before it called save),
+    column for column, then the remaining series."""
     cli = tmp_path / "cli.parquet"
-    write_parquet_atomic(result.to_frame(), cli)  # what simulate --out writes
+    write_parquet_atomic(result.to_frame(), cli)
     saved = tmp_path / "saved.parquet"
     result.save(saved)
     a, b = pd.read_parquet(cli), pd.read_parquet(saved)
