@@ -13,6 +13,7 @@ dampersim imports it (``dampersim.__main__`` excepted). Modules:
 - :mod:`~dampersim.cli.analysis`: ``hysteresis``, ``campbell``, ``orders``
 - :mod:`~dampersim.cli.studies`: ``study``, ``pulsation``
 - :mod:`~dampersim.cli.discrepancy`: ``effects``, ``synth``, ``diagnose``
+- :mod:`~dampersim.cli.rigdata`: ``import`` (rig recordings into a campaign)
 """
 
 from __future__ import annotations
@@ -24,11 +25,11 @@ from dampersim.errors import DampersimError
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``dampersim`` parser with every command; each sets ``func`` to its command."""
-    from dampersim.cli import analysis, core, discrepancy, studies, sweeps
+    from dampersim.cli import analysis, core, discrepancy, rigdata, studies, sweeps
 
     p = argparse.ArgumentParser(prog="dampersim", description="Torque converter damper simulation")
     sub = p.add_subparsers(dest="command", required=True)
-    for group in (core, sweeps, analysis, studies, discrepancy):  # the order of --help
+    for group in (core, sweeps, analysis, studies, discrepancy, rigdata):  # the order of --help
         group.add_parsers(sub)
     return p
 

@@ -291,7 +291,8 @@ def long_recording_channels(program=None, fast_hz: float = 2000.0, slow_hz: floa
     mean torque follow the program with settling transients; the input torque carries
     order 2 content (twice the rotation frequency, 30 % of the mean torque plus 40 N m),
     the output torque a damped copy of it. Channels: ``Trq_In`` [kN m], ``Torque_Output``
-    [N m] (fast group), ``n_In`` [rpm], ``Speed_Out`` [rad/s] (slow group).
+    [N m] (fast group), ``n_In`` [rpm], ``Speed_Out`` [rad/s] and ``Windup_Angle`` [rad]
+    (slow group; the windup of a 381 N m/rad damper, the default set's outer stage).
     """
     if program is None:
         program = ((4.0, 1000.0, 100.0), (5.0, 1500.0, 200.0), (5.0, 2000.0, 150.0),
@@ -320,18 +321,22 @@ def long_recording_channels(program=None, fast_hz: float = 2000.0, slow_hz: floa
     ts = t[::stride]
     n_in = rpm[::stride] + 3.0 * np.sin(2.0 * angle[::stride]) + rng.normal(0.0, 0.5, ts.size)
     speed_out = (rpm[::stride] - 2.0) * (2.0 * math.pi / 60.0) + rng.normal(0.0, 0.02, ts.size)
+    windup = mean_torque[::stride] / 381.0 + rng.normal(0.0, 1e-4, ts.size)
     return {
         "Trq_In": (t, trq_in / 1000.0, "kN m"),
         "Torque_Output": (t, trq_out, "N m"),
         "n_In": (ts, n_in, "rpm"),
         "Speed_Out": (ts, speed_out, "rad/s"),
+        "Windup_Angle": (ts, windup, "rad"),
     }
 
 
 def demo_channels(duration_s: float = 1.0, fast_hz: float = 2000.0, slow_hz: float = 500.0, seed: int = 1) -> dict:
     """A short test-point recording (``duration_s`` [s] at 1500 rpm and 200 N m) with the
-    channels of :func:`long_recording_channels`; ``Speed_Out`` stored as float32."""
+    torque and speed channels of :func:`long_recording_channels` (a test point needs no
+    windup); ``Speed_Out`` stored as float32."""
     channels = long_recording_channels(((duration_s, 1500.0, 200.0),), fast_hz, slow_hz, seed)
+    del channels["Windup_Angle"]
     t, x, unit = channels["Speed_Out"]
     channels["Speed_Out"] = (t, x.astype(np.float32), unit)
     return channels

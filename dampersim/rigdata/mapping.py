@@ -35,7 +35,7 @@ target quantity    words (by name)                                             s
 torque             torque, trq, tq, moment, drehmoment, md                     t, m
 speed              speed, spd, rpm, drehzahl, omega                            n, w
 angle (flanges)    angle, ang, flange, flange_angle, winkel, drehwinkel        phi, theta
-windup (no side)   windup, wind_up, twist, verdrehwinkel, verdrehung,
+windup (no side)   windup, wind_up, windup_angle, twist, twist_angle, verdrehwinkel, verdrehung,
                    rel_angle, relative_angle, delta_phi, dphi, torsion_angle
 input side         in, input, inp, ein, eingang, an, antrieb, prim, primary, drive
 output side        out, output, outp, aus, ausgang, ab, abtrieb, sec, secondary
@@ -78,8 +78,8 @@ WORDS = {
 #: One-letter (or Greek) symbols: a match is a guess the unit confirms.
 SYMBOLS = {"torque": ("t", "m"), "speed": ("n", "w"), "angle": ("phi", "theta")}
 #: Whole names of the windup channel (input flange minus output angle): no side word.
-WINDUP_NAMES = ("windup", "wind_up", "twist", "verdrehwinkel", "verdrehung", "rel_angle", "relative_angle",
-                "delta_phi", "dphi", "torsion_angle")
+WINDUP_NAMES = ("windup", "wind_up", "windup_angle", "twist", "twist_angle", "verdrehwinkel", "verdrehung", "rel_angle",
+                "relative_angle", "delta_phi", "dphi", "torsion_angle")
 SIDES = {
     "input": ("in", "input", "inp", "ein", "eingang", "an", "antrieb", "prim", "primary", "drive"),
     "output": ("out", "output", "outp", "aus", "ausgang", "ab", "abtrieb", "sec", "secondary"),

@@ -1,0 +1,303 @@
+"""Import rig recordings into a campaign folder: read, map channels, cut into test points, write.
+
+One call of :func:`import_campaign` turns one or more recordings (MDF4, TDMS, MAT, CSV;
+see :mod:`dampersim.rigdata.readers`) into the campaign format that the discrepancy
+workflow reads (:mod:`dampersim.discrepancy.campaign`):
+
+1. each file is opened by content and its channels are mapped onto the campaign's columns
+   (:mod:`dampersim.rigdata.mapping`: a map file, or matching by name and unit, reported);
+2. speed and input torque are read at a reduced rate (:data:`SEGMENT_RATE_HZ`, low-passed
+   first) and the recording is cut into steady plateaus (torsional points) and torque
+   ramps (:mod:`dampersim.rigdata.segment`), or into the cuts of an edited manifest;
+3. every point's window is read channel by channel (only that window: a long MDF4 file is
+   never loaded whole), converted to the campaign's units and brought onto one uniform
+   time base (:mod:`dampersim.rigdata.resample`);
+4. the folder is written next to the target under a temporary name and renamed into place
+   only when complete, so an interrupted import never leaves something that looks like a
+   valid campaign. The manifest lists the points in recording order, with the source file
+   and the cut (``source_file``, ``start_s``, ``end_s``) as extra columns; ``campaign.json``
+   records the source files with their SHA-256 and format, and the mapping used.
+
+A problem with one point (a NaN burst, a window too short, a ramp without windup) drops
+that point with a line in the report; a problem with a file (unreadable, a required
+channel missing, an ambiguous mapping) stops the import with an :class:`InputError`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dampersim.discrepancy.campaign import (
+    MANIFEST,
+    MIN_RAMP_S,
+    MIN_REVOLUTIONS,
+    MIN_TORSIONAL_S,
+    MeasuredPoint,
+    read_campaign,
+    write_campaign,
+)
+from dampersim.errors import InputError
+from dampersim.rigdata import mapping, resample, segment
+from dampersim.rigdata.readers import open_recording, sniff_format
+
+#: Rate [Hz] of the speed and torque traces the recording is cut on: far above the
+#: plateau and ramp dynamics (< 5 Hz), and its anti-alias cut-off (0.4 x 500 = 200 Hz)
+#: keeps order 2, by which a plateau's excitation is recognised, up to 6000 rpm; a 500 MB
+#: recording's cut traces stay a few MB.
+SEGMENT_RATE_HZ = 500.0
+#: Highest engine order the campaign must resolve ([thesis] §3.4: orders 1-8) and the
+#: margin above Nyquist we ask of a point's sample rate.
+MAX_ORDER = 8
+NYQUIST_MARGIN = 2.2
+#: Columns the import adds to the manifest so that the cuts can be reviewed and edited.
+CUT_COLUMNS = ("source_file", "start_s", "end_s")
+
+
+@dataclass
+class ImportReport:
+    """What an import did: points written, points dropped, and every decision, in words."""
+
+    campaign: str
+    points: list = field(default_factory=list)  # manifest rows written (dicts)
+    dropped: list = field(default_factory=list)  # {"source_file", "start_s", "end_s", "reason"}
+    lines: list = field(default_factory=list)  # the report, one decision per line
+
+    def to_dict(self) -> dict:
+        return {"campaign": self.campaign, "points": self.points, "dropped": self.dropped, "report": self.lines}
+
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+
+# --------------------------------------------------------------------------- sources
+def source_files(sources) -> list:
+    """The files to import, in the given order; a folder stands for the files directly in it
+    (sorted by name, hidden files skipped). A missing path raises InputError."""
+    files = []
+    for s in sources:
+        s = os.fspath(s)
+        if os.path.isdir(s):
+            inner = sorted(f for f in os.listdir(s) if not f.startswith(".") and os.path.isfile(os.path.join(s, f)))
+            if not inner:
+                raise InputError(f"{s!r}: the folder holds no files; accepted is a folder of recordings or the files themselves")
+            files += [os.path.join(s, f) for f in inner]
+        elif os.path.isfile(s):
+            files.append(s)
+        else:
+            raise InputError(f"{s!r}: no such file or folder; accepted is a recording file or a folder of them")
+    return [os.path.abspath(f) for f in files]
+
+
+def sha256_of(path) -> str:
+    """SHA-256 (hex) of a file, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(2**20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def check_target(out) -> str:
+    """Absolute path of the campaign to write: it must not exist yet, or be an empty folder."""
+    out = os.path.abspath(os.fspath(out))
+    if os.path.exists(out) and (not os.path.isdir(out) or os.listdir(out)):
+        raise InputError(f"--out {out!r}: exists and is not an empty folder; accepted is a new or empty folder")
+    return out
+
+
+# --------------------------------------------------------------------------- cuts
+def read_cuts(path) -> dict:
+    """Cuts from an edited manifest: {source file name: [(kind, start_s, end_s, id)]}.
+
+    The manifest is the one an import wrote (columns ``id``, ``kind``, ``source_file``,
+    ``start_s``, ``end_s``); rows may be deleted, their kind, start and end edited.
+    """
+    import pandas as pd
+
+    try:
+        man = pd.read_csv(path)
+    except Exception as exc:  # noqa: BLE001 - any parse failure is bad input
+        raise InputError(f"--cuts {os.fspath(path)!r}: not a readable CSV table ({exc})") from None
+    need = ("id", "kind") + CUT_COLUMNS
+    missing = [c for c in need if c not in man.columns]
+    if missing:
+        raise InputError(f"--cuts {os.fspath(path)!r}: missing column(s) {', '.join(missing)}; accepted is the "
+                         f"manifest an import wrote (columns {', '.join(need)})")
+    cuts: dict = {}
+    for i, row in man.iterrows():
+        where = f"--cuts row {i + 2}"
+        kind = str(row["kind"]).strip().lower()
+        if kind not in ("torsional", "ramp"):
+            raise InputError(f"{where}: kind {row['kind']!r}; accepted is torsional or ramp")
+        try:
+            t0, t1 = float(row["start_s"]), float(row["end_s"])
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: start_s/end_s {row['start_s']!r}/{row['end_s']!r}; accepted are numbers of seconds") from None
+        if not (math.isfinite(t0) and math.isfinite(t1) and 0 <= t0 < t1):
+            raise InputError(f"{where}: start_s = {t0!r}, end_s = {t1!r}; accepted is 0 <= start_s < end_s")
+        cuts.setdefault(str(row["source_file"]), []).append((kind, t0, t1, str(row["id"])))
+    return cuts
+
+
+# --------------------------------------------------------------------------- one file
+def _read_mapped(rec, spec, target, t0=None, t1=None):
+    t, x = rec.read(spec.name) if t0 is None else rec.read_window(spec.name, t0, t1)
+    return np.asarray(t, dtype=float), mapping.convert(x, spec.unit, target, spec.gain, spec.offset)
+
+
+def _segment_traces(rec, specs):
+    """Speed [rpm] and input torque [N m] on one time base at about SEGMENT_RATE_HZ."""
+    series = {k: _read_mapped(rec, specs[k], k) for k in ("input_speed_rpm", "input_torque_nm")}
+    t, cols, _ = resample.common_time_base(series, rate_hz=SEGMENT_RATE_HZ)
+    return t, cols["input_speed_rpm"], cols["input_torque_nm"]
+
+
+def _point(rec, specs, kind, t0, t1, pid, rate_hz):
+    """MeasuredPoint of window [t0, t1) [s], or (None, reason)."""
+    series = {k: _read_mapped(rec, s, k, t0, t1) for k, s in specs.items()}
+    for k, (t, _x) in series.items():
+        if t.size < 16:
+            return None, f"channel {specs[k].name!r} has {t.size} samples in the window"
+    t, cols, note = resample.common_time_base(series, rate_hz=rate_hz)
+    bad = [specs[k].name for k, x in cols.items() if not np.all(np.isfinite(x))]
+    if bad:
+        return None, f"NaN/inf samples in {', '.join(bad)}"
+    fs = float(f"{1.0 / float(np.mean(np.diff(t))):.10g}")  # the uniform base's rate, without rounding noise
+    rpm = float(np.mean(cols["input_speed_rpm"]))
+    torque = float(np.mean(cols["input_torque_nm"]))
+    dur = float(t[-1] - t[0])
+    windup = None
+    if kind == "torsional":
+        need = max(MIN_TORSIONAL_S, MIN_REVOLUTIONS * 60.0 / max(rpm, 1e-9))
+        if dur < need:
+            return None, f"window of {dur:.3g} s is shorter than the order analysis needs ({need:.3g} s at {rpm:.0f} rpm)"
+        if fs < NYQUIST_MARGIN * MAX_ORDER * rpm / 60.0:
+            return None, f"sample rate {fs:.4g} Hz cannot resolve order {MAX_ORDER} at {rpm:.0f} rpm"
+    else:
+        if dur < MIN_RAMP_S:
+            return None, f"ramp window of {dur:.3g} s is shorter than {MIN_RAMP_S:g} s"
+        if "windup_deg" in cols:
+            windup = np.radians(cols["windup_deg"])
+        elif "input_flange_deg" in cols and "output_flange_deg" in cols:
+            windup = np.radians(cols["input_flange_deg"] - cols["output_flange_deg"])
+        else:
+            return None, "a ramp needs windup_deg or input_flange_deg and output_flange_deg; none is mapped"
+    point = MeasuredPoint(
+        id=pid, kind=kind, speed_rpm=round(rpm, 3), mean_torque_nm=round(torque, 3), sample_rate_hz=fs,
+        time=t - t[0], input_torque=cols["input_torque_nm"], output_torque=cols["output_torque_nm"],
+        input_speed_rpm=cols["input_speed_rpm"], output_speed_rpm=cols["output_speed_rpm"], windup=windup,
+    )
+    return point, note
+
+
+def _import_file(path, channel_map, cuts, rate_hz, report: ImportReport, first_index: int):
+    """Points of one recording (list of (MeasuredPoint, cut row)) and its source record."""
+    name = os.path.basename(path)
+    fmt = sniff_format(path)
+    with open_recording(path) as rec:
+        res = mapping.resolve(rec.channels, channel_map)
+        report.lines.append(f"{name}: {fmt}, {len(rec.channels)} channels")
+        report.lines += [f"  {line}" for line in res.report]
+        specs = dict(res.specs)
+        if cuts is None:
+            t, speed, torque = _segment_traces(rec, specs)
+            found = segment.find_segments(t, speed, torque)
+            segments, rejected = found.segments, found.rejected
+            plan = [(s.kind, s.start_s, s.end_s, None) for s in segments]
+            for r in rejected:
+                report.lines.append(f"  not a test point: {r.kind} {r.start_s:.2f}-{r.end_s:.2f} s ({r.reason})")
+            report.lines.append(f"  {len(plan)} test points found on the speed and input torque traces")
+        else:
+            plan = cuts.get(name, [])
+            report.lines.append(f"  {len(plan)} cuts taken from the edited manifest")
+        out = []
+        for k, (kind, t0, t1, pid) in enumerate(plan):
+            pid = pid or f"p{first_index + len(out) + 1:03d}"
+            point, note = _point(rec, specs, kind, t0, t1, pid, rate_hz)
+            cut = {"source_file": name, "start_s": round(float(t0), 4), "end_s": round(float(t1), 4)}
+            if point is None:
+                report.dropped.append({**cut, "kind": kind, "reason": note})
+                report.lines.append(f"  dropped {kind} {t0:.2f}-{t1:.2f} s: {note}")
+                continue
+            out.append((point, cut))
+        if out:
+            report.lines.append(f"  resampling (last point): {note}")
+        mapping_doc = {k: {"name": s.name, "unit": s.unit, "gain": s.gain, "offset": s.offset} for k, s in specs.items()}
+    return out, {"file": name, "sha256": sha256_of(path), "format": fmt}, mapping_doc
+
+
+# --------------------------------------------------------------------------- campaign
+def import_campaign(sources, out, map_path=None, cuts_path=None, rate_hz=None, name="", description="") -> ImportReport:
+    """Import recordings ``sources`` (files or folders) into a new campaign folder ``out``.
+
+    map_path: channel map TOML (:func:`dampersim.rigdata.mapping.load_map`), None to match
+    by name and unit; cuts_path: an import's manifest with edited cuts, None to find the
+    test points automatically; rate_hz: sample rate [Hz] of the written points (None: the
+    highest channel rate of each file). Returns the :class:`ImportReport`; raises
+    InputError for a file-level problem, leaving nothing behind.
+    """
+    files = source_files(sources)
+    target = check_target(out)
+    channel_map = mapping.load_map(map_path) if map_path is not None else None
+    cuts = read_cuts(cuts_path) if cuts_path is not None else None
+    if cuts is not None:
+        unknown = sorted(set(cuts) - {os.path.basename(f) for f in files})
+        if unknown:
+            raise InputError(f"--cuts names source file(s) {', '.join(unknown)} that are not imported now")
+    report = ImportReport(campaign=target)
+    points, rows, sources_doc, mappings = [], {}, [], {}
+    for path in files:
+        got, src, mapped = _import_file(path, channel_map, cuts, rate_hz, report, len(points))
+        sources_doc.append(src)
+        mappings[src["file"]] = mapped
+        for point, cut in got:
+            points.append(point)
+            rows[point.id] = cut
+    if not points:
+        raise InputError("no test point could be cut from the recordings:\n" + report.text())
+    parent = os.path.dirname(target)
+    os.makedirs(parent, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.partial-", dir=parent)
+    try:
+        meta = {
+            "source": {"files": [s["file"] for s in sources_doc], "sha256": [s["sha256"] for s in sources_doc],
+                       "format": [s["format"] for s in sources_doc]},
+            "mapping": mappings,
+        }
+        write_campaign(tmp, points, name=name or os.path.basename(target), description=description,
+                       metadata=meta, point_columns=rows)
+        check = read_campaign(tmp)
+        for q in check.problems:
+            report.lines.append(f"campaign check: {q}")
+        if os.path.isdir(target):
+            os.rmdir(target)  # empty, checked above
+        os.replace(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    report.points = [{"id": p.id, "kind": p.kind, "speed_rpm": p.speed_rpm, "mean_torque_nm": p.mean_torque_nm,
+                      "sample_rate_hz": p.sample_rate_hz, **rows[p.id]} for p in points]
+    report.lines.append(f"wrote {len(points)} test points to {target} ({MANIFEST} in recording order)")
+    return report
+
+
+def manifest_cut_rows(report: ImportReport) -> list:
+    """Rows of the cut table (id, kind, source file, start, end [s]) for a review."""
+    return [{k: row[k] for k in ("id", "kind", "speed_rpm", "mean_torque_nm") + CUT_COLUMNS} for row in report.points]
+
+
+def report_json(report: ImportReport) -> str:
+    """The report as JSON text."""
+    return json.dumps(report.to_dict(), indent=2)
+
+
+__all__ = ["ImportReport", "import_campaign", "source_files", "read_cuts", "check_target", "sha256_of",
+           "manifest_cut_rows", "report_json", "SEGMENT_RATE_HZ", "CUT_COLUMNS"]
