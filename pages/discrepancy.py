@@ -1,9 +1,14 @@
 """Discrepancy: run the discrepancy workflow of :mod:`dampersim.discrepancy` on a measured
-campaign (a bundled example or an uploaded zip) and show what the model misses: the
-verdict and the named effect, the ranking of candidate effects, the held-out gap at each
-stage against the noise floor, where the error lies and the order amplitudes of the
-held-out points. Layout and callbacks only; data and figures come from
+campaign (a bundled example, an uploaded zip or an imported rig recording) and show what
+the model misses: the verdict and the named effect, the ranking of candidate effects, the
+held-out gap at each stage against the noise floor, where the error lies and the order
+amplitudes of the held-out points. Layout and callbacks only; data and figures come from
 :mod:`dampersim.views`.
+
+A rig recording (MDF4, TDMS, MAT, CSV) uploaded in "Import a rig recording" is previewed
+(channel mapping, proposed cuts in an editable table) and, on "Create campaign", imported
+with the reviewed cuts (:mod:`dampersim.views.rigdata`); the new campaign is then selected
+like an uploaded zip.
 
 URL keys: ``campaign`` (a bundled example's folder name) or ``upload`` (the id of a
 campaign uploaded to this server).
@@ -15,7 +20,7 @@ import json
 import time
 
 import dash
-from dash import Input, Output, State, callback, dcc, html, no_update
+from dash import Input, Output, State, callback, dash_table, dcc, html, no_update
 
 from dampersim.errors import DampersimError
 from dampersim.views.discrepancy import (
@@ -38,6 +43,7 @@ from dampersim.views.discrepancy import (
     verdict_summary,
 )
 from dampersim.views.notices import notice
+from dampersim.views.rigdata import KINDS, RECORDING_ACCEPTED, confirm_import, stage_recording
 from dampersim.views.sweeps import SweepRegistry
 from pages import _frame as F, _jobs as J, _widgets as W
 
@@ -62,6 +68,42 @@ def _options(examples: dict, state: dict) -> list:
     return opts
 
 
+IMPORT_COLUMNS = [
+    {"id": "id", "name": "Point", "editable": False},
+    {"id": "kind", "name": "Kind", "presentation": "dropdown", "editable": True},
+    {"id": "speed_rpm", "name": "Speed [rpm]", "type": "numeric", "editable": False},
+    {"id": "mean_torque_nm", "name": "Mean torque [N m]", "type": "numeric", "editable": False},
+    {"id": "start_s", "name": "Start [s]", "type": "numeric", "editable": True},
+    {"id": "end_s", "name": "End [s]", "type": "numeric", "editable": True},
+]
+HIDDEN = {"display": "none"}
+
+
+def import_card():
+    """The review of an uploaded rig recording: the mapping report, the cuts as an editable
+    table and the "Create campaign" button (hidden until a recording was previewed)."""
+    table = dash_table.DataTable(
+        id="discrepancy-import-cuts", columns=IMPORT_COLUMNS, data=[], editable=True, row_deletable=True,
+        dropdown={"kind": {"options": [{"label": k, "value": k} for k in KINDS], "clearable": False}},
+        style_cell={"fontFamily": "inherit", "fontSize": "13px", "padding": "2px 6px"},
+        style_header={"fontWeight": 600},
+        style_data_conditional=[{"if": {"column_editable": False}, "backgroundColor": "#f5f6f8", "color": "#4b5563"}])
+    return html.Div([
+        html.Div("Import a rig recording: review the cuts", className="card-title"),
+        html.Div([
+            html.Div(id="discrepancy-import-report"),
+            html.P("Edit kind, start and end [s from the start of the recording] in the table, or delete rows with ×; "
+                   "speed and mean torque are those of the proposed cut. Create campaign imports the recording with "
+                   "these cuts and selects the new campaign in the campaign list.", className="hint"),
+            table,
+            html.Div(id="discrepancy-import-dropped"),
+            html.Div(html.Button("Create campaign", id="discrepancy-import-create", n_clicks=0, disabled=True,
+                                 className="btn btn-primary"), className="buttons"),
+            html.Div(id="discrepancy-import-create-notices", className="notices"),
+        ], className="card-body"),
+    ], id="discrepancy-import-card", className="card card-wide", style=HIDDEN)
+
+
 def layout(**query):
     examples = example_campaigns()
     state, notices = parse_discrepancy_query(query, examples)
@@ -80,6 +122,14 @@ def layout(**query):
                 hint=f"Accepted: {CAMPAIGN_ACCEPTED}."),
             html.Div(id="discrepancy-upload-notices", className="notices"),
         ]),
+        W.section("Import a rig recording", [
+            W.control("Rig recording", dcc.Upload(
+                id="discrepancy-import-upload", children=html.Div(["Drop one recording here or ", html.A("choose one")]),
+                className="upload", multiple=False, accept=".mf4,.mdf,.tdms,.mat,.csv,.txt"),
+                hint=f"Accepted: {RECORDING_ACCEPTED}. The channel mapping and the proposed cuts are shown on the "
+                     "right for review before anything is created."),
+            html.Div(id="discrepancy-import-notices", className="notices"),
+        ]),
         W.run_panel(PAGE, "Run diagnosis"),
         W.section("How it works", [html.P(
             "Every measured input torque drives the model (default parameter set); the estimated parameters are "
@@ -90,6 +140,7 @@ def layout(**query):
     content = [
         *J.background_header(PAGE),
         html.Div([
+            import_card(),
             W.card("Campaign validation", html.Div(id="discrepancy-report"), wide=True),
             W.card("Verdict", html.Div(html.P("No diagnosis shown yet: press Run diagnosis.", className="hint"),
                                        id="discrepancy-verdict"), wide=True),
@@ -106,7 +157,8 @@ def layout(**query):
     ]
     return F.page_frame(PAGE, "Discrepancy", "Where model and measurement disagree, which physical effect the model is "
                         "missing, and how much of the gap adding it closes on test points that no fit has seen.",
-                        controls, content, notices, J.background_stores(PAGE, None, autorun))
+                        controls, content, notices,
+                        [*J.background_stores(PAGE, None, autorun), dcc.Store(id="discrepancy-import-staged", data=None)])
 
 
 F.register_link_callbacks(PAGE)
@@ -143,6 +195,105 @@ def upload(contents, filename, options):
 )
 def upload_cb(contents, filename, options):
     return upload(contents, filename, options)
+
+
+# --------------------------------------------------------------------------- rig recording import
+def report_list(lines):
+    """Import report lines as a nested list: a file's line, its indented lines under it."""
+    items, sub = [], None
+    for line in lines or ():
+        if line.startswith("  ") and sub is not None:
+            sub.append(html.Li(line.strip()))
+            continue
+        sub = []
+        items.append(html.Li([line, html.Ul(sub)]))
+    return html.Ul(items, className="import-report")
+
+
+def dropped_table(dropped):
+    """Cuts the import could not use, with the reason (nothing when none was dropped)."""
+    if not dropped:
+        return []
+    return [html.P(f"{len(dropped)} proposed cut(s) could not be used:", className="hint"),
+            W.table([("kind", "Kind"), ("start_s", "Start [s]"), ("end_s", "End [s]"), ("reason", "Reason")], dropped,
+                    cid="discrepancy-import-dropped-table")]
+
+
+IMPORT_PREVIEW_OUTPUTS = 8
+
+
+def preview_recording(contents, filename):
+    """An uploaded recording -> (staged upload {"id", "file"} or None, card style, report,
+    cut rows, dropped cuts, Create button disabled, Create notices (cleared), notices). A
+    refused recording hides the review, says what was wrong and what is accepted, and keeps
+    nothing."""
+    if not contents:
+        return (no_update,) * IMPORT_PREVIEW_OUTPUTS
+    name = filename or "the file"
+    try:
+        preview = stage_recording(contents, filename)
+    except DampersimError as exc:
+        return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(f"The recording was refused: {exc}", "error")])
+    except Exception as exc:  # a file the readers did not foresee: say so, keep serving
+        return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(
+            f"The recording was refused: {name} could not be read ({type(exc).__name__}: {exc}); accepted is "
+            f"{RECORDING_ACCEPTED}", "error")])
+    text = (f"{name} was read: {len(preview['cuts'])} proposed cut(s). Review them on the right, then press "
+            "Create campaign.")
+    level = "success" if preview["cuts"] else "warning"
+    return ({"id": preview["id"], "file": preview["file"]}, {}, report_list(preview["report"]), preview["cuts"],
+            dropped_table(preview["dropped"]), not preview["cuts"], [], W.render_notices([notice(text, level)]))
+
+
+@callback(
+    Output("discrepancy-import-staged", "data"),
+    Output("discrepancy-import-card", "style"),
+    Output("discrepancy-import-report", "children"),
+    Output("discrepancy-import-cuts", "data"),
+    Output("discrepancy-import-dropped", "children"),
+    Output("discrepancy-import-create", "disabled"),
+    Output("discrepancy-import-create-notices", "children", allow_duplicate=True),
+    Output("discrepancy-import-notices", "children"),
+    Input("discrepancy-import-upload", "contents"),
+    State("discrepancy-import-upload", "filename"),
+    prevent_initial_call=True,
+)
+def preview_recording_cb(contents, filename):
+    return preview_recording(contents, filename)
+
+
+def create_campaign(n_clicks, staged, rows, options):
+    """"Create campaign" -> (dropdown options, dropdown value, notices): the reviewed cuts
+    imported as a new campaign, which is added to the dropdown and selected. A refused
+    row, an unknown upload or a failed import changes nothing and says why."""
+    if not n_clicks:
+        return no_update, no_update, no_update
+    if not isinstance(staged, dict) or not staged.get("id"):
+        return no_update, no_update, W.render_notices([notice("Upload a rig recording first.", "info")])
+    try:
+        out = confirm_import(staged["id"], rows)
+    except DampersimError as exc:
+        return no_update, no_update, W.render_notices([notice(f"The campaign was not created: {exc}", "error")])
+    except Exception as exc:  # reported on the page, never raised into Dash
+        return no_update, no_update, W.render_notices([notice(
+            f"The campaign was not created: unexpected {type(exc).__name__}: {exc}", "error")])
+    value = out["value"]
+    options = [o for o in (options or []) if o.get("value") != value] + [{"label": out["label"], "value": value}]
+    return options, value, W.render_notices(out["notices"])
+
+
+@callback(
+    Output("discrepancy-campaign", "options", allow_duplicate=True),
+    Output("discrepancy-campaign", "value", allow_duplicate=True),
+    Output("discrepancy-import-create-notices", "children"),
+    Input("discrepancy-import-create", "n_clicks"),
+    State("discrepancy-import-staged", "data"),
+    State("discrepancy-import-cuts", "data"),
+    State("discrepancy-campaign", "options"),
+    prevent_initial_call=True,
+)
+def create_campaign_cb(n_clicks, staged, rows, options):
+    return create_campaign(n_clicks, staged, rows, options)
 
 
 def report(summary: dict):
