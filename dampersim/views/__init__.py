@@ -7,8 +7,9 @@ One module per concern: :mod:`~dampersim.views.state` (page state in the URL),
 :mod:`~dampersim.views.notices` (notices and query values), and one module per page's
 computation: :mod:`~dampersim.views.explorer`, :mod:`~dampersim.views.segments`,
 :mod:`~dampersim.views.sweeps` (Colourmap and Maps), :mod:`~dampersim.views.hysteresis`,
-:mod:`~dampersim.views.pulsation`, :mod:`~dampersim.views.studies` and
-:mod:`~dampersim.views.discrepancy`. Page views return figures (built by :mod:`dampersim.plotting`), tables
+:mod:`~dampersim.views.pulsation`, :mod:`~dampersim.views.studies`,
+:mod:`~dampersim.views.discrepancy` and :mod:`~dampersim.views.rigdata` (importing a rig
+recording on the Discrepancy page). Page views return figures (built by :mod:`dampersim.plotting`), tables
 and summary figures; the cached ones (explorer, segments, sweeps, hysteresis, discrepancy)
 hold their figures as JSON-ready dicts, the uncached Pulsation and Studies views return
 Plotly figure objects.
