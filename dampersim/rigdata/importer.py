@@ -47,6 +47,7 @@ from dampersim.discrepancy.campaign import (
 from dampersim.errors import InputError
 from dampersim.rigdata import mapping, resample, segment
 from dampersim.rigdata.readers import open_recording, sniff_format
+from dampersim.signal import sample_rate_from_time
 
 #: Rate [Hz] of the speed and torque traces the recording is cut on: far above the
 #: plateau and ramp dynamics (< 5 Hz), and its anti-alias cut-off (0.4 x 500 = 200 Hz)
@@ -153,11 +154,95 @@ def _read_mapped(rec, spec, target, t0=None, t1=None):
     return np.asarray(t, dtype=float), mapping.convert(x, spec.unit, target, spec.gain, spec.offset)
 
 
+#: The segmentation traces are read in pieces of this length [s] of the recording, each
+#: with SEGMENT_OVERLAP_S [s] more read either side: at 20 kHz a piece is 1.2 M samples
+#: (about 10 MB a channel), however long the recording.
+SEGMENT_PIECE_S = 60.0
+#: Overlap [s] read either side of a piece and dropped after the low pass: 200 periods of
+#: its 200 Hz cut-off, where its response to the cut edge (below 1e-4 after 12 periods,
+#: resample.GUARD_PERIODS) has long vanished; the pieces join as the whole trace would.
+SEGMENT_OVERLAP_S = 1.0
+
+
+def _on_grid(target, t, x, t_grid, rate_hz=None):
+    """Values ``x`` [any unit] at times ``t`` [s] brought onto ``t_grid`` [s] at
+    SEGMENT_RATE_HZ as resample.common_time_base does: low-passed first when faster.
+    ``rate_hz``: the channel's rate [Hz] as the reader found it over the whole recording,
+    used when the piece agrees with it, so that every piece is filtered alike."""
+    try:
+        fs = sample_rate_from_time(t)
+    except InputError as exc:
+        raise InputError(f"{target}: {exc}") from None
+    if rate_hz and abs(fs / rate_hz - 1.0) <= 1e-9:
+        fs = float(rate_hz)
+    if fs > SEGMENT_RATE_HZ * (1 + resample.SAME_RATE_TOLERANCE):
+        x = resample.lowpass(x, fs, resample.CUTOFF_FRACTION * SEGMENT_RATE_HZ)
+    return resample.cubic_at(x, float(t[0]), fs, t_grid)
+
+
 def _segment_traces(rec, specs):
-    """Speed [rpm] and input torque [N m] on one time base at about SEGMENT_RATE_HZ."""
-    series = {k: _read_mapped(rec, specs[k], k) for k in ("input_speed_rpm", "input_torque_nm")}
-    t, cols, _ = resample.common_time_base(series, rate_hz=SEGMENT_RATE_HZ)
-    return t, cols["input_speed_rpm"], cols["input_torque_nm"]
+    """Speed [rpm] and input torque [N m] on one time base at about SEGMENT_RATE_HZ.
+
+    The two channels are read SEGMENT_PIECE_S [s] at a time (plus SEGMENT_OVERLAP_S either
+    side), each piece low-passed and interpolated onto its part of the common time base,
+    so that the memory needed stays that of one piece, not of whole channels at their full
+    rate (a 500 MB recording's torque channel alone is about 250 MB as float64 time and
+    values, several times that while filtered). A recording that fits in one piece is
+    resampled whole, by resample.common_time_base. The time base is the one
+    common_time_base would build: SEGMENT_RATE_HZ from the later of the two first samples
+    to the earlier of the two last ones.
+    """
+    keys = ("input_speed_rpm", "input_torque_nm")
+    samples = {c.name: c.samples for c in rec.channels}
+    rates = {c.name: c.rate_hz for c in rec.channels}
+    rate, piece, margin = SEGMENT_RATE_HZ, SEGMENT_PIECE_S, SEGMENT_OVERLAP_S
+    seen = dict.fromkeys(keys, 0)
+    first, last = dict.fromkeys(keys), dict.fromkeys(keys)
+    times, cols = [], {k: [] for k in keys}
+    start = None
+    k = 0
+    while True:
+        a, b = k * piece, (k + 1) * piece
+        series = {key: _read_mapped(rec, specs[key], key, a - margin, b + margin) for key in keys}
+        done = []
+        for key, (t, _x) in series.items():
+            core = t[(t >= a) & (t < b)]
+            if core.size:
+                first[key] = core[0] if first[key] is None else first[key]
+                last[key] = core[-1]
+                seen[key] += core.size
+            if seen[key] >= samples[specs[key].name]:
+                done.append(key)
+            elif first[key] is not None and t.size == 0:
+                raise InputError(f"{key}: channel {specs[key].name!r} has no samples from {a - margin:.6g} to "
+                                 f"{b + margin:.6g} s; accepted is a uniform time base without gaps")
+        if k == 0 and len(done) == len(keys):  # every sample read: the whole trace at once
+            t, out, _ = resample.common_time_base(series, rate_hz=rate)
+            return t, out["input_speed_rpm"], out["input_torque_nm"]
+        if start is None and all(first[key] is not None for key in keys):
+            start = max(first.values())
+        if done and (start is None or not min(last[key] for key in done) > start):
+            spans = ", ".join(f"{key} {first[key]:.6g}-{last[key]:.6g} s" for key in keys if last[key] is not None)
+            raise InputError(f"the channels do not overlap in time ({spans}); accepted are channels recorded together")
+        if start is not None:
+            # this piece's samples of the common base: those from a [s] up to b [s]
+            lo, hi = max(0, math.ceil((a - start) * rate)), max(0, math.ceil((b - start) * rate))
+            if done:
+                end = min(last[key] for key in done)
+                hi = min(hi, int(math.floor((end - start) * rate * (1 + 1e-12))) + 1)
+            if hi > lo:
+                t_grid = start + np.arange(lo, hi) / rate
+                times.append(t_grid)
+                for key, (t, x) in series.items():
+                    cols[key].append(_on_grid(key, t, x, t_grid, rates[specs[key].name]))
+        if done:
+            break
+        k += 1
+    t = np.concatenate(times) if times else np.empty(0)
+    if t.size < 2:
+        raise InputError(f"the speed and torque channels overlap for {t.size} sample(s) at {rate:g} Hz; accepted is "
+                         "an overlap of at least two samples")
+    return t, np.concatenate(cols["input_speed_rpm"]), np.concatenate(cols["input_torque_nm"])
 
 
 def _point(rec, specs, kind, t0, t1, pid, rate_hz):
