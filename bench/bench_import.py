@@ -273,8 +273,9 @@ def _rss_mb() -> float:
 
 #: steps of import_campaign whose peak RSS is reported, by the importer function that
 #: starts each (the step runs until the next one starts)
-PHASES = (("_segment_traces", "segmentation traces"), ("_point", "cutting the points"),
-          ("write_campaign", "writing the campaign"), ("read_campaign", "reading it back (check)"))
+PHASES = (("_segment_traces", "segmentation traces"), ("_point", "cutting a point"),
+          ("write_point", "writing a point"), ("check_point", "reading it back (check)"),
+          ("write_manifest", "writing the manifest"))
 
 
 def import_long(path: str, out: str) -> dict:
@@ -430,7 +431,7 @@ def part2(folder: str, args) -> None:
     print(f"dropped: {len(m['dropped'])}" + "".join(f"\n  {d['kind']} {d['start_s']:.2f}-{d['end_s']:.2f} s: "
                                                   f"{d['reason']}" for d in m["dropped"]))
     print(f"written: {size['samples']} samples per column in {len(m['points'])} points at the file's highest rate, "
-          f"{size['disk_mb']:.0f} MB of Parquet (float32); held as float64 until written: {size['float64_mb']:.0f} MB")
+          f"{size['disk_mb']:.0f} MB of Parquet (float32), {size['float64_mb']:.0f} MB as float64 (one point at a time in memory)")
 
 
 def main(argv=None):

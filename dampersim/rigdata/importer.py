@@ -29,6 +29,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -41,8 +42,9 @@ from dampersim.discrepancy.campaign import (
     MIN_REVOLUTIONS,
     MIN_TORSIONAL_S,
     MeasuredPoint,
-    read_campaign,
-    write_campaign,
+    check_point,
+    write_manifest,
+    write_point,
 )
 from dampersim.errors import InputError
 from dampersim.rigdata import mapping, resample, segment
@@ -58,6 +60,8 @@ SEGMENT_RATE_HZ = 500.0
 #: margin above Nyquist we ask of a point's sample rate.
 MAX_ORDER = 8
 NYQUIST_MARGIN = 2.2
+#: A point id as the cuts may give it: it becomes the name of the point's file.
+_POINT_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 #: Columns the import adds to the manifest so that the cuts can be reviewed and edited.
 CUT_COLUMNS = ("source_file", "start_s", "end_s")
 
@@ -133,6 +137,7 @@ def read_cuts(path) -> dict:
         raise InputError(f"--cuts {os.fspath(path)!r}: missing column(s) {', '.join(missing)}; accepted is the "
                          f"manifest an import wrote (columns {', '.join(need)})")
     cuts: dict = {}
+    seen: set = set()
     for i, row in man.iterrows():
         where = f"--cuts row {i + 2}"
         kind = str(row["kind"]).strip().lower()
@@ -144,7 +149,14 @@ def read_cuts(path) -> dict:
             raise InputError(f"{where}: start_s/end_s {row['start_s']!r}/{row['end_s']!r}; accepted are numbers of seconds") from None
         if not (math.isfinite(t0) and math.isfinite(t1) and 0 <= t0 < t1):
             raise InputError(f"{where}: start_s = {t0!r}, end_s = {t1!r}; accepted is 0 <= start_s < end_s")
-        cuts.setdefault(str(row["source_file"]), []).append((kind, t0, t1, str(row["id"])))
+        pid = str(row["id"]).strip()
+        if not _POINT_ID.match(pid):
+            raise InputError(f"{where}: id {row['id']!r}; accepted is 1-64 letters, digits, '_', '-' or '.' "
+                             "(it names the point's file)")
+        if pid in seen:
+            raise InputError(f"{where}: id {pid!r} is given twice; accepted is one row per point")
+        seen.add(pid)
+        cuts.setdefault(str(row["source_file"]), []).append((kind, t0, t1, pid))
     return cuts
 
 
@@ -283,8 +295,10 @@ def _point(rec, specs, kind, t0, t1, pid, rate_hz):
     return point, note
 
 
-def _import_file(path, channel_map, cuts, rate_hz, report: ImportReport, first_index: int):
-    """Points of one recording (list of (MeasuredPoint, cut row)) and its source record."""
+def _import_file(path, channel_map, cuts, rate_hz, report: ImportReport, store):
+    """Cut one recording into points and hand each to ``store(point, cut) -> bool`` (written
+    and checked) as soon as it is made, so that one point at a time is held in memory;
+    returns the file's source record and the mapping used."""
     name = os.path.basename(path)
     fmt = sniff_format(path)
     with open_recording(path) as rec:
@@ -296,6 +310,7 @@ def _import_file(path, channel_map, cuts, rate_hz, report: ImportReport, first_i
             t, speed, torque = _segment_traces(rec, specs)
             found = segment.find_segments(t, speed, torque)
             segments, rejected = found.segments, found.rejected
+            del t, speed, torque
             plan = [(s.kind, s.start_s, s.end_s, None) for s in segments]
             for r in rejected:
                 report.lines.append(f"  not a test point: {r.kind} {r.start_s:.2f}-{r.end_s:.2f} s ({r.reason})")
@@ -303,20 +318,21 @@ def _import_file(path, channel_map, cuts, rate_hz, report: ImportReport, first_i
         else:
             plan = cuts.get(name, [])
             report.lines.append(f"  {len(plan)} cuts taken from the edited manifest")
-        out = []
-        for k, (kind, t0, t1, pid) in enumerate(plan):
-            pid = pid or f"p{first_index + len(out) + 1:03d}"
+        last_note = None
+        for kind, t0, t1, pid in plan:
+            pid = pid or f"p{len(report.points) + 1:03d}"
             point, note = _point(rec, specs, kind, t0, t1, pid, rate_hz)
             cut = {"source_file": name, "start_s": round(float(t0), 4), "end_s": round(float(t1), 4)}
             if point is None:
                 report.dropped.append({**cut, "kind": kind, "reason": note})
                 report.lines.append(f"  dropped {kind} {t0:.2f}-{t1:.2f} s: {note}")
                 continue
-            out.append((point, cut))
-        if out:
-            report.lines.append(f"  resampling (last point): {note}")
+            if store(point, cut):
+                last_note = note
+        if last_note is not None:
+            report.lines.append(f"  resampling (last point): {last_note}")
         mapping_doc = {k: {"name": s.name, "unit": s.unit, "gain": s.gain, "offset": s.offset} for k, s in specs.items()}
-    return out, {"file": name, "sha256": sha256_of(path), "format": fmt}, mapping_doc
+    return {"file": name, "sha256": sha256_of(path), "format": fmt}, mapping_doc
 
 
 # --------------------------------------------------------------------------- campaign
@@ -338,39 +354,44 @@ def import_campaign(sources, out, map_path=None, cuts_path=None, rate_hz=None, n
         if unknown:
             raise InputError(f"--cuts names source file(s) {', '.join(unknown)} that are not imported now")
     report = ImportReport(campaign=target)
-    points, rows, sources_doc, mappings = [], {}, [], {}
-    for path in files:
-        got, src, mapped = _import_file(path, channel_map, cuts, rate_hz, report, len(points))
-        sources_doc.append(src)
-        mappings[src["file"]] = mapped
-        for point, cut in got:
-            points.append(point)
-            rows[point.id] = cut
-    if not points:
-        raise InputError("no test point could be cut from the recordings:\n" + report.text())
     parent = os.path.dirname(target)
     os.makedirs(parent, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.partial-", dir=parent)
+
+    def store(point, cut) -> bool:
+        """Write ``point`` now, read it back as the campaign reader will, keep its row."""
+        row = write_point(tmp, point, columns=cut)
+        _, problems = check_point(tmp, row)
+        if problems:
+            os.remove(os.path.join(tmp, row["file"]))
+            reason = "; ".join(q.message for q in problems)
+            report.dropped.append({**cut, "kind": point.kind, "reason": reason})
+            report.lines.append(f"  dropped {point.kind} {cut['start_s']:.2f}-{cut['end_s']:.2f} s: {reason}")
+            return False
+        report.points.append(row)
+        return True
+
     try:
+        sources_doc, mappings = [], {}
+        for path in files:
+            src, mapped = _import_file(path, channel_map, cuts, rate_hz, report, store)
+            sources_doc.append(src)
+            mappings[src["file"]] = mapped
+        if not report.points:
+            raise InputError("no test point could be cut from the recordings:\n" + report.text())
         meta = {
             "source": {"files": [s["file"] for s in sources_doc], "sha256": [s["sha256"] for s in sources_doc],
                        "format": [s["format"] for s in sources_doc]},
             "mapping": mappings,
         }
-        write_campaign(tmp, points, name=name or os.path.basename(target), description=description,
-                       metadata=meta, point_columns=rows)
-        check = read_campaign(tmp)
-        for q in check.problems:
-            report.lines.append(f"campaign check: {q}")
+        write_manifest(tmp, report.points, name=name or os.path.basename(target), description=description, metadata=meta)
         if os.path.isdir(target):
             os.rmdir(target)  # empty, checked above
         os.replace(tmp, target)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    report.points = [{"id": p.id, "kind": p.kind, "speed_rpm": p.speed_rpm, "mean_torque_nm": p.mean_torque_nm,
-                      "sample_rate_hz": p.sample_rate_hz, **rows[p.id]} for p in points]
-    report.lines.append(f"wrote {len(points)} test points to {target} ({MANIFEST} in recording order)")
+    report.lines.append(f"wrote {len(report.points)} test points to {target} ({MANIFEST} in recording order)")
     return report
 
 

@@ -13,6 +13,7 @@ from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.synth import synthesize
 from dampersim.errors import InputError
 from dampersim.rigdata.examples import EXTENSIONS, WRITERS, long_recording_channels, write_recording
+from dampersim.rigdata import importer
 from dampersim.rigdata.importer import import_campaign
 from dampersim.signal import order_amplitudes
 
@@ -63,8 +64,8 @@ def synthetic(tmp_path_factory):
 
 
 def _recording(point):
-    """One campaign point as rig channels: other names, kN m, rad/s, input torque and
-    speeds in separate groups as written by the DAQ."""
+    """One campaign point as rig channels: other names and units (kN m, rad/s, deg), all
+    on the point's own time base."""
     t = point.time
     ch = {
         "Trq_In": (t, point.input_torque / 1000.0, "kN m"),
@@ -147,3 +148,24 @@ def test_edited_cuts_are_imported_as_given(long_runs, tmp_path, capsys):
         bad = tmp_path / "bad.csv"
         bad.write_text(header + "\n" + rows[0].replace(",0.0,", ",-1,") + "\n")
         import_campaign([long_runs["mdf4"]], tmp_path / "third", cuts_path=bad)
+
+
+def test_cuts_with_a_repeated_or_unsafe_id_are_refused(long_runs, tmp_path):
+    name = os.path.basename(long_runs["csv"])
+    for rows, field in ((["p1,torsional,{n},0.5,3.5", "p1,torsional,{n},5.5,8.5"], "given twice"),
+                        (["../x,torsional,{n},0.5,3.5"], "names the point's file")):
+        cuts = tmp_path / "cuts.csv"
+        cuts.write_text("id,kind,source_file,start_s,end_s\n" + "\n".join(r.format(n=name) for r in rows) + "\n")
+        with pytest.raises(InputError, match=field):
+            import_campaign([long_runs["csv"]], tmp_path / "out", cuts_path=cuts)
+        assert not (tmp_path / "out").exists()
+
+
+def test_long_recordings_are_cut_piece_by_piece_as_a_whole(long_runs, tmp_path, monkeypatch):
+    # the segmentation traces of a long recording are read in pieces; with 3 s pieces the
+    # 27 s example goes through that path and must give the cuts of the whole-trace path
+    whole = import_campaign([long_runs["tdms"]], tmp_path / "whole")
+    monkeypatch.setattr(importer, "SEGMENT_PIECE_S", 3.0)
+    pieces = import_campaign([long_runs["tdms"]], tmp_path / "pieces")
+    cut = lambda r: [(p["kind"], p["start_s"], p["end_s"]) for p in r.points]  # noqa: E731
+    assert cut(pieces) == cut(whole)
