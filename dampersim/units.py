@@ -57,3 +57,23 @@ def number_text(v) -> str:
             return str(int(v))
         return repr(v)
     return str(v)
+
+
+def parse_number(raw) -> float:
+    """A finite float from a number or its text; raises ValueError with the reason
+    ("is empty", "is not a number", "is not a finite number")."""
+    if isinstance(raw, bool):
+        raise ValueError("is not a number")
+    if isinstance(raw, (int, float, np.integer, np.floating)):
+        v = float(raw)
+    else:
+        text = str(raw).strip()
+        if not text:
+            raise ValueError("is empty")
+        try:
+            v = float(text)
+        except ValueError:
+            raise ValueError("is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError("is not a finite number")
+    return v

@@ -41,6 +41,7 @@ from dampersim.discrepancy.campaign import (
     MIN_RAMP_S,
     MIN_REVOLUTIONS,
     MIN_TORSIONAL_S,
+    KINDS,
     MeasuredPoint,
     check_point,
     write_manifest,
@@ -50,6 +51,7 @@ from dampersim.errors import InputError
 from dampersim.rigdata import mapping, resample, segment
 from dampersim.rigdata.readers import open_recording, sniff_format
 from dampersim.signal import sample_rate_from_time
+from dampersim.units import parse_number
 
 #: Rate [Hz] of the speed and torque traces the recording is cut on: far above the
 #: plateau and ramp dynamics (< 5 Hz), and its anti-alias cut-off (0.4 x 500 = 200 Hz)
@@ -119,16 +121,61 @@ def check_target(out) -> str:
 
 
 # --------------------------------------------------------------------------- cuts
+def check_cut_rows(rows, name_row) -> list:
+    """Cut rows (dicts with id, kind, start_s, end_s [s]; other keys ignored) ->
+    ``[(kind, start_s, end_s, id)]``.
+
+    ``name_row(i)`` names row ``i`` (1-based) in messages, e.g. "--cuts row 3". Raises
+    InputError naming the row, its id and the field: an id that cannot name a point's file,
+    a repeated id, a kind other than torsional or ramp, a start or end that is not a
+    number, or not 0 <= start_s < end_s; and for no rows at all.
+    """
+    if not isinstance(rows, (list, tuple)) or not rows:
+        raise InputError("no cuts left to import; accepted is at least one row with id, kind, start_s and end_s")
+    out, seen = [], set()
+    for i, row in enumerate(rows, start=1):
+        if not isinstance(row, dict):
+            raise InputError(f"{name_row(i)}: accepted is a row with id, kind, start_s and end_s")
+        pid = str(row.get("id", "")).strip()
+        where = f"{name_row(i)} ({pid})" if pid else name_row(i)
+        if not _POINT_ID.match(pid):
+            raise InputError(f"{where} [id]: {row.get('id')!r}; accepted is a point id of letters, digits, '.', '_' and "
+                             "'-' (up to 64 characters, starting with a letter or digit; it names the point's file)")
+        if pid in seen:
+            raise InputError(f"{where} [id]: {pid!r} is given twice; accepted is one row per point id")
+        seen.add(pid)
+        kind = str(row.get("kind", "")).strip().lower()
+        if kind not in KINDS:
+            raise InputError(f"{where} [kind]: {row.get('kind')!r}; accepted is torsional or ramp")
+        times = {}
+        for name in ("start_s", "end_s"):
+            raw = row.get(name)
+            try:
+                times[name] = parse_number("" if raw is None else raw)
+            except ValueError as exc:
+                shown = "the value" if raw is None or str(raw).strip() == "" else repr(raw)
+                raise InputError(f"{where} [{name}]: {shown} {exc}; accepted are seconds from the start of the "
+                                 "recording with 0 <= start_s < end_s") from None
+        t0, t1 = times["start_s"], times["end_s"]
+        if t0 < 0:
+            raise InputError(f"{where} [start_s]: {t0!r} is negative; accepted is 0 <= start_s < end_s")
+        if t1 <= t0:
+            raise InputError(f"{where} [end_s]: {t1!r} is not after start_s = {t0!r}; accepted is 0 <= start_s < end_s")
+        out.append((kind, t0, t1, pid))
+    return out
+
+
 def read_cuts(path) -> dict:
     """Cuts from an edited manifest: {source file name: [(kind, start_s, end_s, id)]}.
 
     The manifest is the one an import wrote (columns ``id``, ``kind``, ``source_file``,
-    ``start_s``, ``end_s``); rows may be deleted, their kind, start and end edited.
+    ``start_s``, ``end_s``); rows may be deleted, their kind, start and end edited. Every
+    row is checked by :func:`check_cut_rows`.
     """
     import pandas as pd
 
     try:
-        man = pd.read_csv(path)
+        man = pd.read_csv(path, dtype=str, keep_default_na=False)
     except Exception as exc:  # noqa: BLE001 - any parse failure is bad input
         raise InputError(f"--cuts {os.fspath(path)!r}: not a readable CSV table ({exc})") from None
     need = ("id", "kind") + CUT_COLUMNS
@@ -136,27 +183,10 @@ def read_cuts(path) -> dict:
     if missing:
         raise InputError(f"--cuts {os.fspath(path)!r}: missing column(s) {', '.join(missing)}; accepted is the "
                          f"manifest an import wrote (columns {', '.join(need)})")
+    rows = man.to_dict("records")
     cuts: dict = {}
-    seen: set = set()
-    for i, row in man.iterrows():
-        where = f"--cuts row {i + 2}"
-        kind = str(row["kind"]).strip().lower()
-        if kind not in ("torsional", "ramp"):
-            raise InputError(f"{where}: kind {row['kind']!r}; accepted is torsional or ramp")
-        try:
-            t0, t1 = float(row["start_s"]), float(row["end_s"])
-        except (TypeError, ValueError):
-            raise InputError(f"{where}: start_s/end_s {row['start_s']!r}/{row['end_s']!r}; accepted are numbers of seconds") from None
-        if not (math.isfinite(t0) and math.isfinite(t1) and 0 <= t0 < t1):
-            raise InputError(f"{where}: start_s = {t0!r}, end_s = {t1!r}; accepted is 0 <= start_s < end_s")
-        pid = str(row["id"]).strip()
-        if not _POINT_ID.match(pid):
-            raise InputError(f"{where}: id {row['id']!r}; accepted is 1-64 letters, digits, '_', '-' or '.' "
-                             "(it names the point's file)")
-        if pid in seen:
-            raise InputError(f"{where}: id {pid!r} is given twice; accepted is one row per point")
-        seen.add(pid)
-        cuts.setdefault(str(row["source_file"]), []).append((kind, t0, t1, pid))
+    for row, cut in zip(rows, check_cut_rows(rows, lambda i: f"--cuts row {i + 1}")):
+        cuts.setdefault(str(row["source_file"]).strip(), []).append(cut)
     return cuts
 
 
@@ -405,5 +435,5 @@ def report_json(report: ImportReport) -> str:
     return json.dumps(report.to_dict(), indent=2)
 
 
-__all__ = ["ImportReport", "import_campaign", "source_files", "read_cuts", "check_target", "sha256_of",
+__all__ = ["ImportReport", "import_campaign", "source_files", "check_cut_rows", "read_cuts", "check_target", "sha256_of",
            "manifest_cut_rows", "report_json", "SEGMENT_RATE_HZ", "CUT_COLUMNS"]

@@ -7,34 +7,12 @@ the pages render it, tests read its text.
 
 from __future__ import annotations
 
-import math
 
-import numpy as np
 
 
 def notice(text: str, level: str = "warning") -> dict:
     """A notice for the page: ``{"level": "warning"|"error"|"info", "text": ...}``."""
     return {"level": level, "text": str(text)}
-
-
-def parse_number(raw) -> float:
-    """A finite float from a number or its text; raises ValueError with the reason
-    ("is empty", "is not a number", "is not a finite number")."""
-    if isinstance(raw, bool):
-        raise ValueError("is not a number")
-    if isinstance(raw, (int, float, np.integer, np.floating)):
-        v = float(raw)
-    else:
-        text = str(raw).strip()
-        if not text:
-            raise ValueError("is empty")
-        try:
-            v = float(text)
-        except ValueError:
-            raise ValueError("is not a number") from None
-    if not math.isfinite(v):
-        raise ValueError("is not a finite number")
-    return v
 
 
 def query_value(query: dict, key: str, notices: list, label: str):
@@ -48,4 +26,4 @@ def query_value(query: dict, key: str, notices: list, label: str):
     return raw
 
 
-__all__ = ["notice", "parse_number", "query_value"]
+__all__ = ["notice", "query_value"]

@@ -24,7 +24,8 @@ from dampersim.parameters.validation import describe_range
 from dampersim.units import number_text
 from dampersim.solver.linear import check_time_step
 from dampersim.units import rad_to_deg
-from dampersim.views.notices import notice, parse_number, query_value
+from dampersim.units import parse_number
+from dampersim.views.notices import notice, query_value
 from dampersim.views.store import LABEL_NAMES, load_parameter_set, store_parameter_set, valid_set_id
 
 #: Largest uploaded parameter file [bytes].

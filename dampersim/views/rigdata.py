@@ -33,14 +33,16 @@ import tempfile
 import time
 from pathlib import Path
 
+from dampersim.discrepancy.campaign import KINDS
 from dampersim.discrepancy.upload import MAX_CAMPAIGN_ZIP_BYTES, UPLOAD_ID
 from dampersim.errors import InputError
 from dampersim.fileio import write_text_atomic
 from dampersim.locations import cache_dir
+from dampersim.rigdata import importer
 from dampersim.rigdata.importer import import_campaign
 from dampersim.uploads import decode_upload
 from dampersim.views.discrepancy import UPLOAD_PREFIX, upload_folder, upload_label, uploads_dir
-from dampersim.views.notices import notice, parse_number
+from dampersim.views.notices import notice
 
 #: Sub-directory of the cache with the staged recordings.
 STAGING_SUBDIR = "recording-uploads"
@@ -61,10 +63,8 @@ RECORDING_ACCEPTED = (f"one rig recording of up to {MAX_RECORDING_BYTES // 2**20
 SIZE_ACCEPTED = (f"a recording of up to {MAX_RECORDING_BYTES // 2**20} MB here; import a larger one on the server's command "
                  f"line with {IMPORT_COMMAND} and diagnose it with python -m dampersim diagnose CAMPAIGN (or upload the "
                  f"campaign folder here as a zip of up to {MAX_CAMPAIGN_ZIP_BYTES // 2**20} MB)")
-KINDS = ("torsional", "ramp")
 #: Columns of a preview's cut rows, in table order.
 CUT_FIELDS = ("id", "kind", "speed_rpm", "mean_torque_nm", "start_s", "end_s")
-_POINT_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 _STAGED_META = "staged.json"
 _PREVIEW = "preview.json"
 
@@ -214,46 +214,12 @@ def stage_recording(contents, filename) -> dict:
 
 # --------------------------------------------------------------------------- confirm
 def check_cut_rows(rows) -> list:
-    """Reviewed cut rows (dicts with id, kind, start_s, end_s; other keys ignored) ->
-    ``[(id, kind, start_s, end_s)]``. Raises InputError naming the row (1-based, as in the
-    table, with its id) and the field: an id that is not a point id, a repeated id, a kind
-    other than torsional or ramp, a start or end that is not a number, or not 0 <= start_s
-    < end_s; and for no rows, or more than :data:`MAX_CUTS`."""
-    if not isinstance(rows, (list, tuple)) or not rows:
-        raise InputError("no cuts left to import; accepted is at least one row in the cut table")
-    if len(rows) > MAX_CUTS:
+    """Reviewed cut rows of the page's table -> ``[(id, kind, start_s, end_s)]``
+    (:func:`dampersim.rigdata.importer.check_cut_rows`, rows named as the table shows them:
+    ``cut row N (id)``), at most :data:`MAX_CUTS` of them."""
+    if isinstance(rows, (list, tuple)) and len(rows) > MAX_CUTS:
         raise InputError(f"{len(rows)} cut rows; accepted are at most {MAX_CUTS}")
-    out, seen = [], set()
-    for i, row in enumerate(rows, start=1):
-        if not isinstance(row, dict):
-            raise InputError(f"cut row {i}: accepted is a row with id, kind, start_s and end_s")
-        pid = str(row.get("id", "")).strip()
-        where = f"cut row {i} ({pid})" if pid else f"cut row {i}"
-        if not _POINT_ID.match(pid):
-            raise InputError(f"{where} [id]: {row.get('id')!r}; accepted is a point id of letters, digits, '.', '_' and '-' "
-                             "(up to 64 characters, starting with a letter or digit)")
-        if pid in seen:
-            raise InputError(f"{where} [id]: {pid!r} is given twice; accepted is one row per point id")
-        seen.add(pid)
-        kind = str(row.get("kind", "")).strip().lower()
-        if kind not in KINDS:
-            raise InputError(f"{where} [kind]: {row.get('kind')!r}; accepted is torsional or ramp")
-        times = {}
-        for field in ("start_s", "end_s"):
-            raw = row.get(field)
-            try:
-                times[field] = parse_number("" if raw is None else raw)
-            except ValueError as exc:
-                shown = "the value" if raw is None or str(raw).strip() == "" else repr(raw)
-                raise InputError(f"{where} [{field}]: {shown} {exc}; accepted are seconds from the start of the "
-                                 "recording with 0 <= start_s < end_s") from None
-        t0, t1 = times["start_s"], times["end_s"]
-        if t0 < 0:
-            raise InputError(f"{where} [start_s]: {t0!r} is negative; accepted is 0 <= start_s < end_s")
-        if t1 <= t0:
-            raise InputError(f"{where} [end_s]: {t1!r} is not after start_s = {t0!r}; accepted is 0 <= start_s < end_s")
-        out.append((pid, kind, t0, t1))
-    return out
+    return [(pid, kind, t0, t1) for kind, t0, t1, pid in importer.check_cut_rows(rows, lambda i: f"cut row {i}")]
 
 
 def cuts_csv(cuts, source_file: str) -> str:

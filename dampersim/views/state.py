@@ -23,7 +23,8 @@ from dampersim.excitation import PROTOCOLS, OrderSum, parse_orders
 from dampersim.units import number_text
 from dampersim.sweeps.grid import parse_values
 from dampersim.units import deg_to_rad, rpm_to_rad_s
-from dampersim.views.notices import notice, parse_number, query_value
+from dampersim.units import parse_number
+from dampersim.views.notices import notice, query_value
 from dampersim.views.params import parameter_query_items, parse_parameters, resolve_system
 
 #: Most excitation orders one page state may hold.
