@@ -247,6 +247,19 @@ class Recording:
     def _close(self) -> None:
         pass
 
+    def _parse(self, parse, what: str, accepted: str) -> None:
+        """Run ``parse()`` (the reader's scan of the opened file); on any failure close the
+        file and raise InputError naming it: an InputError as it is, anything else as a
+        damaged ``what`` file with ``accepted`` (the layouts the reader reads)."""
+        try:
+            parse()
+        except InputError:
+            self._close()
+            raise
+        except Exception as exc:  # noqa: BLE001 - any failure to parse is bad input
+            self._close()
+            raise InputError(f"{self.path}: damaged {what} file ({_one_line(exc)}); {accepted}") from None
+
     # -- public interface --
     def _entry(self, name) -> _Entry:
         if self._closed:

@@ -162,14 +162,7 @@ class MatRecording(Recording):
                 self._close()
                 raise InputError(f"{self.path}: not a readable MAT v7.3 (HDF5) file ({_one_line(exc)}); "
                                  "truncated or damaged") from None
-        try:
-            self._layouts(tree)
-        except InputError:
-            self._close()
-            raise
-        except Exception as exc:  # noqa: BLE001
-            self._close()
-            raise InputError(f"{self.path}: damaged MAT-file ({_one_line(exc)}); {ACCEPTED_LAYOUT}") from None
+        self._parse(lambda: self._layouts(tree), "MAT", ACCEPTED_LAYOUT)
 
     def _sampled(self, vector: _Vector, where: str):
         key = id(vector)

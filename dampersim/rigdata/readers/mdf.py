@@ -165,14 +165,7 @@ class MdfRecording(Recording):
             if error is not None:
                 self._close()
                 raise InputError(f"{self.path}: not a readable MDF 4.x file ({error}); {ACCEPTED_LAYOUT}")
-        try:
-            self._scan()
-        except InputError:
-            self._close()
-            raise
-        except Exception as exc:  # noqa: BLE001
-            self._close()
-            raise InputError(f"{self.path}: damaged MDF file ({_one_line(exc)}); {ACCEPTED_LAYOUT}") from None
+        self._parse(self._scan, "MDF", ACCEPTED_LAYOUT)
 
     def _scan(self):
         mdf = self._mdf

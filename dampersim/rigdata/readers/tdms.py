@@ -92,14 +92,7 @@ class TdmsRecording(Recording):
             self._file = TdmsFile.open(self.path)
         except Exception as exc:  # noqa: BLE001 - any failure to parse is bad input
             raise InputError(f"{self.path}: not a readable TDMS file ({_one_line(exc)})") from None
-        try:
-            self._scan()
-        except InputError:
-            self._close()
-            raise
-        except Exception as exc:  # noqa: BLE001
-            self._close()
-            raise InputError(f"{self.path}: damaged TDMS file ({_one_line(exc)}); {ACCEPTED_LAYOUT}") from None
+        self._parse(self._scan, "TDMS", ACCEPTED_LAYOUT)
 
     def _scan(self):
         groups = self._file.groups()
