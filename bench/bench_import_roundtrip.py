@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import os
 import sys
 import tempfile
@@ -62,20 +61,6 @@ OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibration_ite
 SYNTH = {"effects": [("pendulum_absorber", {"inertia": 0.002})], "perturb": 0.03, "seed": 3, "record": 0.6}
 STRONG = 0.02  # orders compared: at least this share of the signal's largest order
 GAPS = ("gap_before_nm", "gap_calibrated_nm", "gap_after_nm", "noise_floor_nm")
-
-
-def recording(point) -> dict:
-    """One campaign point as rig channels: other names, kN m and rad/s."""
-    t = point.time
-    channels = {
-        "Trq_In": (t, point.input_torque / 1000.0, "kN m"),
-        "Torque_Output": (t, point.output_torque, "N m"),
-        "n_In": (t, point.input_speed_rpm, "rpm"),
-        "Speed_Out": (t, point.output_speed_rpm * (math.pi / 30.0), "rad/s"),
-    }
-    if point.windup is not None:
-        channels["Twist"] = (t, np.degrees(point.windup), "deg")
-    return channels
 
 
 def largest_order_difference(original, imported) -> tuple:
@@ -117,7 +102,7 @@ def main(argv=None) -> int:
     from dampersim.discrepancy.campaign import read_campaign
     from dampersim.discrepancy.diagnose import diagnose
     from dampersim.discrepancy.synth import synthesize
-    from dampersim.rigdata.examples import EXTENSIONS, WRITERS, write_recording
+    from dampersim.rigdata.examples import EXTENSIONS, WRITERS, point_channels, write_recording
     from dampersim.rigdata.importer import import_campaign
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -153,7 +138,7 @@ def main(argv=None) -> int:
             os.makedirs(src)
             rows, files = ["id,kind,source_file,start_s,end_s"], []
             for p in original.points:
-                files.append(write_recording(os.path.join(src, f"{p.id}{EXTENSIONS[fmt]}"), recording(p), fmt))
+                files.append(write_recording(os.path.join(src, f"{p.id}{EXTENSIONS[fmt]}"), point_channels(p), fmt))
                 end = float(p.time[-1]) + 0.5 / p.sample_rate_hz
                 rows.append(f"{p.id},{p.kind},{os.path.basename(files[-1])},0,{end!r}")
             cuts = os.path.join(folder, f"cuts-{fmt}.csv")

@@ -342,6 +342,23 @@ def demo_channels(duration_s: float = 1.0, fast_hz: float = 2000.0, slow_hz: flo
     return channels
 
 
-__all__ = ["WRITERS", "EXTENSIONS", "MAT_LAYOUTS", "time_groups", "write_mdf4", "write_tdms", "write_mat5",
+def point_channels(point) -> dict:
+    """One campaign test point (a :class:`dampersim.discrepancy.campaign.MeasuredPoint`) as rig
+    channels on its own time base, with other names and units than the campaign's:
+    ``Trq_In`` [kN m], ``Torque_Output`` [N m], ``n_In`` [rpm], ``Speed_Out`` [rad/s] and,
+    for a ramp, ``Twist`` [deg] (the windup)."""
+    t = point.time
+    channels = {
+        "Trq_In": (t, point.input_torque / 1000.0, "kN m"),
+        "Torque_Output": (t, point.output_torque, "N m"),
+        "n_In": (t, point.input_speed_rpm, "rpm"),
+        "Speed_Out": (t, point.output_speed_rpm * (math.pi / 30.0), "rad/s"),
+    }
+    if point.windup is not None:
+        channels["Twist"] = (t, np.degrees(point.windup), "deg")
+    return channels
+
+
+__all__ = ["WRITERS", "point_channels", "EXTENSIONS", "MAT_LAYOUTS", "time_groups", "write_mdf4", "write_tdms", "write_mat5",
            "write_mat73", "write_csv", "write_recording", "mat73_header", "demo_channels",
            "long_recording_channels"]

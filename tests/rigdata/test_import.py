@@ -2,7 +2,6 @@
 round-trips a synthetic campaign, bad input stops the import and leaves nothing behind."""
 
 import json
-import math
 import os
 
 import numpy as np
@@ -12,7 +11,7 @@ from dampersim.cli import main
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.synth import synthesize
 from dampersim.errors import InputError
-from dampersim.rigdata.examples import EXTENSIONS, WRITERS, long_recording_channels, write_recording
+from dampersim.rigdata.examples import EXTENSIONS, WRITERS, long_recording_channels, point_channels, write_recording
 from dampersim.rigdata import importer
 from dampersim.rigdata.importer import import_campaign
 from dampersim.signal import order_amplitudes
@@ -63,28 +62,13 @@ def synthetic(tmp_path_factory):
     return read_campaign(folder)
 
 
-def _recording(point):
-    """One campaign point as rig channels: other names and units (kN m, rad/s, deg), all
-    on the point's own time base."""
-    t = point.time
-    ch = {
-        "Trq_In": (t, point.input_torque / 1000.0, "kN m"),
-        "Torque_Output": (t, point.output_torque, "N m"),
-        "n_In": (t, point.input_speed_rpm, "rpm"),
-        "Speed_Out": (t, point.output_speed_rpm * (math.pi / 30.0), "rad/s"),
-    }
-    if point.windup is not None:
-        ch["Twist"] = (t, np.degrees(point.windup), "deg")
-    return ch
-
-
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_synthetic_campaign_round_trips_through_every_format(synthetic, fmt, tmp_path):
     src = tmp_path / "recordings"
     src.mkdir()
     rows = ["id,kind,source_file,start_s,end_s"]
     for p in synthetic.points:
-        path = write_recording(src / f"{p.id}{EXTENSIONS[fmt]}", _recording(p), fmt)
+        path = write_recording(src / f"{p.id}{EXTENSIONS[fmt]}", point_channels(p), fmt)
         rows.append(f"{p.id},{p.kind},{os.path.basename(path)},0,{float(p.time[-1]) + 0.5 / p.sample_rate_hz!r}")
     cuts = tmp_path / "cuts.csv"
     cuts.write_text("\n".join(rows) + "\n")
