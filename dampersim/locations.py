@@ -23,4 +23,41 @@ def cache_dir() -> Path:
     return Path(os.path.abspath(base))
 
 
-__all__ = ["CACHE_DIR_ENV", "repo_root", "cache_dir"]
+def private_dir(*parts: str) -> Path:
+    """``cache_dir()/<parts>``, created with mode 0700 (and its missing parents), checked
+    before use.
+
+    Views, job records and uploads under it are read back by the server, so nobody else
+    may write there: the folder (and the cache directory itself) is refused with an
+    :class:`~dampersim.errors.InputError` when it is owned by another user or is group- or
+    world-writable. The message says which folder and what is accepted.
+    """
+    from dampersim.errors import InputError
+
+    root = cache_dir()
+    path = root.joinpath(*parts)
+    try:
+        os.makedirs(root, mode=0o700, exist_ok=True)
+        os.makedirs(path, mode=0o700, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cache folder {path.name!r} cannot be created ({exc.strerror or exc}); "
+                         f"set {CACHE_DIR_ENV} to a writable folder") from None
+    for folder in (root, path) if path != root else (root,):
+        _check_private(folder, InputError)
+    return path
+
+
+def _check_private(folder: Path, error) -> None:
+    """Refuse ``folder`` unless this user owns it and only this user may write to it."""
+    if os.name != "posix":
+        return
+    st = os.stat(folder)
+    if st.st_uid != os.getuid():
+        raise error(f"cache folder {folder.name!r} belongs to another user (uid {st.st_uid}): accepted is a folder "
+                    f"owned by the user running dampersim; set {CACHE_DIR_ENV} to one")
+    if st.st_mode & 0o022:
+        raise error(f"cache folder {folder.name!r} may be written by other users (mode {oct(st.st_mode & 0o777)}): "
+                    f"accepted is a folder only its owner may write (chmod go-w)")
+
+
+__all__ = ["CACHE_DIR_ENV", "repo_root", "cache_dir", "private_dir"]
