@@ -7,7 +7,9 @@ import dash
 from dash import Input, Output, State, callback, dcc, html
 
 from dampersim.errors import DampersimError
-from dampersim.views.pulsation import dominant_order_view, pulsation_view
+from dampersim.incidents import public_message
+from dampersim.views.pulsation import dominant_order_view, parse_pulsation_query, pulsation_view
+from pages._widgets import render_notices
 
 dash.register_page(__name__, path="/pulsation", name="Pulsation generator", title="Pulsation generator · dampersim", order=7)
 
@@ -16,14 +18,19 @@ def _num(id_, value, step):
     return dcc.Input(id=id_, type="number", value=value, step=step, debounce=True)
 
 
-def layout(pressure="2.5", speed="1500", coupled="0", **kwargs):
+def layout(**query):
+    """The page from its link: ``pressure`` [bar abs], ``speed`` [rpm], ``coupled`` (1/0);
+    bad values get a notice and the default (never an error page)."""
+    state, notices = parse_pulsation_query(query)
     return html.Div([
         html.H2("Pulsation generator"),
+        html.Div(render_notices(notices, "The link contained values that could not be used:"), id="pg-link-notices",
+                 className="notices"),
         html.Div([
-            html.Label(["Charge pressure [bar abs] ", _num("pg-pressure", float(pressure or 2.5), 0.1)]),
-            html.Label([" Speed [rpm] ", _num("pg-speed", float(speed or 1500), 50)]),
+            html.Label(["Charge pressure [bar abs] ", _num("pg-pressure", state["pressure"], 0.1)]),
+            html.Label([" Speed [rpm] ", _num("pg-speed", state["speed"], 50)]),
             dcc.Checklist(id="pg-coupled", options=[{"label": " coupled to the damper and rig", "value": "1"}],
-                          value=["1"] if str(coupled) == "1" else [], inline=True),
+                          value=["1"] if state["coupled"] else [], inline=True),
             html.Button("Run", id="pg-run"),
             html.Button("Dominant order over speed", id="pg-sweep"),
         ], className="controls"),
@@ -33,6 +40,7 @@ def layout(pressure="2.5", speed="1500", coupled="0", **kwargs):
         dcc.Graph(id="pg-pressure-fig"),
         dcc.Graph(id="pg-orders"),
         html.Progress(id="pg-progress", value="0", max="1"),
+        html.Div(id="pg-sweep-message", className="notices"),
         dcc.Graph(id="pg-dominant"),
     ])
 
@@ -47,16 +55,23 @@ def run(_n, pressure, speed, coupled):
     try:
         view = pulsation_view(pressure, speed, coupled)
     except DampersimError as exc:
-        return dash.no_update, dash.no_update, dash.no_update, "", str(exc)
+        return dash.no_update, dash.no_update, dash.no_update, "", public_message(exc)
+    except Exception as exc:  # a defect: logged with an incident id, never a traceback on the page
+        return dash.no_update, dash.no_update, dash.no_update, "", public_message(exc, "pulsation run")
     f1, f2, f3 = view["figures"]
     return f1, f2, f3, view["summary"], " ".join(view["warnings"])
 
 
 @callback(
-    Output("pg-dominant", "figure"),
+    Output("pg-dominant", "figure"), Output("pg-sweep-message", "children"),
     Input("pg-sweep", "n_clicks"), State("pg-pressure", "value"), State("pg-coupled", "value"),
     background=True, progress=[Output("pg-progress", "value"), Output("pg-progress", "max")],
     prevent_initial_call=True,
 )
 def sweep(set_progress, _n, pressure, coupled):
-    return dominant_order_view(pressure, coupled, progress=lambda done, total: set_progress((str(done), str(total))))
+    """Dominant order over speed; the posted values are validated again here."""
+    try:
+        fig = dominant_order_view(pressure, coupled, progress=lambda done, total: set_progress((str(done), str(total))))
+    except Exception as exc:  # DampersimError: its message; anything else: an incident id
+        return dash.no_update, public_message(exc, "pulsation sweep")
+    return fig, ""

@@ -6,20 +6,26 @@ from __future__ import annotations
 import dash
 from dash import Input, Output, State, callback, dcc, html
 
-from dampersim.errors import DampersimError
-from dampersim.views.studies import DEFAULT_STUDY, STUDY_NAMES, study_view
+from dampersim.incidents import public_message
+from dampersim.views.studies import STUDY_NAMES, parse_studies_query, study_view
+from pages._widgets import render_notices
 
 dash.register_page(__name__, path="/studies", name="Studies", title="Studies · dampersim", order=8)
 
 
-def layout(study=DEFAULT_STUDY, quick="1", **kwargs):
-    study = study if study in STUDY_NAMES else DEFAULT_STUDY
+def layout(**query):
+    """The page from its link: ``study`` (a study name) and ``quick`` (1/0); bad values get
+    a notice and the default (never an error page)."""
+    state, notices = parse_studies_query(query)
     return html.Div([
         html.H2("Studies (thesis chapter 7)"),
+        html.Div(render_notices(notices, "The link contained values that could not be used:"), id="st-link-notices",
+                 className="notices"),
         html.Div([
-            dcc.Dropdown(id="st-name", options=[{"label": n, "value": n} for n in STUDY_NAMES], value=study, clearable=False),
+            dcc.Dropdown(id="st-name", options=[{"label": n, "value": n} for n in STUDY_NAMES], value=state["study"],
+                         clearable=False),
             dcc.Checklist(id="st-quick", options=[{"label": " reduced grid", "value": "1"}],
-                          value=["1"] if str(quick) == "1" else [], inline=True),
+                          value=["1"] if state["quick"] else [], inline=True),
             html.Button("Run study", id="st-run"),
             html.Button("Cancel", id="st-cancel"),
         ], className="controls"),
@@ -46,8 +52,8 @@ def run(set_progress, _n, name, quick):
 
     try:
         view = study_view(name, quick=bool(quick), progress=prog)
-    except DampersimError as exc:
-        return [], html.Div(str(exc), className="notice"), ""
+    except Exception as exc:  # DampersimError: its message; anything else: an incident id, never a traceback
+        return [], html.Div(public_message(exc, "study run"), className="notice"), ""
     figs = [dcc.Graph(figure=f) for f in view["figures"]]
     checks = html.Ul([html.Li(f"{k}: {'agrees' if v else 'differs'}") for k, v in view["checks"]]
                      + [html.Li(f"thesis: {k} = {v}") for k, v in view["thesis"].items()]

@@ -10,10 +10,19 @@ spawned and load numba's on-disk cache. Scripts that use spawned workers need th
 Dask: a ``distributed`` scheduler at an address, or a local cluster on this machine. A
 worker computes a point only when its package version, source hash and platform equal the
 parent's (:func:`environment`), so that a result always matches the key it is stored under.
+
+A Dask scheduler runs whatever task a client sends it (pickled functions), and ``tcp://``
+neither encrypts nor authenticates: anyone on the network path could read the parameters,
+inject results or run code on the workers. A ``tcp://`` (or scheme-less, or ``ws://``)
+address is therefore accepted only on this machine (loopback); other machines are reached
+through ``tls://`` with certificates (``distributed``'s ``Security``, configured in the Dask
+config), or, knowingly, with ``DAMPERSIM_ALLOW_INSECURE_DASK=1``
+(:func:`check_scheduler_address`).
 """
 
 from __future__ import annotations
 
+import ipaddress
 import multiprocessing
 import os
 import signal
@@ -31,10 +40,60 @@ from dampersim.version import __version__
 
 #: Environment variable with the address of a Dask scheduler (e.g. tcp://host:8786).
 SCHEDULER_ENV = "DAMPERSIM_SCHEDULER"
+#: Environment variable that, set to 1, allows an unencrypted scheduler on another machine.
+ALLOW_INSECURE_DASK_ENV = "DAMPERSIM_ALLOW_INSECURE_DASK"
+#: Address schemes that neither encrypt nor authenticate.
+INSECURE_SCHEMES = ("tcp", "ws")
+#: Host names that always mean this machine.
+LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
 #: Seconds allowed to connect to a Dask scheduler.
 CONNECT_TIMEOUT = 5.0
 #: Seconds to wait for a reachable scheduler that has no workers yet.
 WORKER_WAIT = 30.0
+
+
+# --------------------------------------------------------------------------- address check
+def _is_loopback(host: str) -> bool:
+    host = host.strip().strip("[]").lower()
+    if host in LOOPBACK_NAMES:
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _address_host(rest: str) -> str:
+    """Host part of ``host:port``, ``[v6]:port`` or ``host``."""
+    rest = rest.split("/", 1)[0]
+    if rest.startswith("["):
+        return rest[1:].split("]", 1)[0]
+    if rest.count(":") > 1:  # bare IPv6 without brackets
+        return rest
+    return rest.rsplit(":", 1)[0] if ":" in rest else rest
+
+
+def check_scheduler_address(address: str) -> str:
+    """Refuse an unencrypted scheduler address on another machine (see the module
+    docstring); returns ``address``. ``tls://`` addresses, ``inproc://`` and loopback
+    ``tcp://`` are accepted; ``$DAMPERSIM_ALLOW_INSECURE_DASK=1`` accepts any."""
+    if not isinstance(address, str) or not address.strip():
+        raise InputError(f"scheduler = {address!r}: accepted is an address such as tls://host:8786")
+    text = address.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text  # distributed's default protocol
+    scheme = scheme.lower()
+    if scheme not in INSECURE_SCHEMES or _is_loopback(_address_host(rest)):
+        return address
+    if os.environ.get(ALLOW_INSECURE_DASK_ENV, "").strip() == "1":
+        return address
+    raise InputError(
+        f"scheduler = {address!r}: an unencrypted {scheme}:// connection to another machine is refused "
+        f"(anyone on the network could read or alter the work, or run code on the workers); accepted are "
+        f"tls://HOST:PORT with certificates, {scheme}:// on this machine (127.0.0.1, localhost, ::1), or "
+        f"{ALLOW_INSECURE_DASK_ENV}=1 to allow it on a trusted network"
+    )
 
 
 # --------------------------------------------------------------------------- worker side
@@ -122,6 +181,8 @@ class DaskBackend:
     name = "dask"
 
     def __init__(self, address, workers):
+        if address is not None:
+            check_scheduler_address(address)
         try:
             from distributed import Client, LocalCluster
         except ImportError:

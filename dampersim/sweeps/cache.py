@@ -18,13 +18,21 @@ stored as bytes: a magic tag, a SHA-256 checksum and an ``.npz`` payload (no pic
 Entries that fail the checksum or the shape/type checks are treated as missing and get
 recomputed. Each entry is written in one diskcache transaction, so an interrupted sweep
 never leaves a partial entry.
+
+A full disk is not a failure of the sweep: :meth:`ResultCache.put` returns False, the
+cache stops writing for the rest of its life (``write_error`` says why) and the sweep goes
+on uncached (:attr:`dampersim.sweeps.SweepResult.cache_notice`). The default folder is
+made by :func:`dampersim.locations.private_dir` (0700, refused when others may write it).
 """
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import io
+import logging
 import math
+import sqlite3
 import os
 import time
 from dataclasses import dataclass
@@ -34,7 +42,7 @@ import numpy as np
 
 from dampersim import keys
 from dampersim.errors import InputError
-from dampersim.locations import CACHE_DIR_ENV, cache_dir, repo_root
+from dampersim.locations import CACHE_DIR_ENV, cache_dir, private_dir, repo_root
 from dampersim.parameters import to_dict
 from dampersim.results import ANALYSIS_WINDOW
 from dampersim.signal import amplitude_spectrum, order_amplitudes
@@ -51,6 +59,8 @@ SPECTRUM_MAX_HZ = 1000.0
 RECORD_FORMAT = 1
 #: Schema name of a sweep-point key.
 KEY_SCHEMA = "dampersim.sweep-point"
+
+LOGGER = logging.getLogger("dampersim.sweeps.cache")
 
 _MAGIC = b"DSPR1\n"
 _DIGEST = 32
@@ -326,6 +336,13 @@ def compute_record(system, point, duration=None, window=None, key="") -> PointRe
 
 
 # --------------------------------------------------------------------------- store
+def _disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` says the disk (or the user's quota) is full."""
+    if isinstance(exc, OSError):
+        return exc.errno in (errno.ENOSPC, errno.EDQUOT)
+    return isinstance(exc, sqlite3.OperationalError) and "full" in str(exc).lower()
+
+
 class ResultCache:
     """Sweep result cache on disk (diskcache; safe to share between processes).
 
@@ -338,9 +355,14 @@ class ResultCache:
     SIZE_LIMIT = 4 * 2**30
 
     def __init__(self, directory=None):
+        self._default = directory is None
         self.directory = Path(os.path.abspath(directory)) if directory is not None else results_dir()
         self._cache = None
         self.corrupted = 0
+        #: why this cache stopped storing (a full disk), or None while it stores
+        self.write_error = None
+        #: points that could not be stored
+        self.unstored = 0
 
     @property
     def diskcache(self):
@@ -349,7 +371,10 @@ class ResultCache:
             import diskcache
 
             try:
-                self.directory.mkdir(parents=True, exist_ok=True)
+                if self._default:
+                    private_dir(RESULTS_SUBDIR)  # 0700; refused when others may write it
+                else:
+                    self.directory.mkdir(parents=True, exist_ok=True)
                 # keep entries (tens of kB) inside SQLite: one row, one atomic transaction
                 self._cache = diskcache.Cache(
                     str(self.directory), size_limit=self.SIZE_LIMIT, disk_min_file_size=2**22
@@ -378,12 +403,35 @@ class ResultCache:
             self.corrupted += 1
             return None
 
-    def put(self, key, record) -> None:
-        """Store ``record`` (a PointRecord or its bytes) under ``key`` in one transaction."""
+    @property
+    def writable(self) -> bool:
+        """False once a write failed for lack of space (see :meth:`put`)."""
+        return self.write_error is None
+
+    def put(self, key, record) -> bool:
+        """Store ``record`` (a PointRecord or its bytes) under ``key`` in one transaction.
+
+        Returns True when stored. A full disk (ENOSPC/EDQUOT, or SQLite's "database or disk
+        is full") returns False, sets :attr:`write_error` and makes every later ``put`` a
+        no-op returning False: the caller goes on without the cache. Other errors raise.
+        """
+        if self.write_error is not None:
+            self.unstored += 1
+            return False
         data = record if isinstance(record, (bytes, bytearray)) else record.to_bytes()
         cache = self.diskcache
-        with cache.transact(retry=True):
-            cache.set(key, bytes(data), retry=True)
+        try:
+            with cache.transact(retry=True):
+                cache.set(key, bytes(data), retry=True)
+        except (OSError, sqlite3.OperationalError) as exc:
+            if not _disk_full(exc):
+                raise
+            self.write_error = (f"the result cache is out of disk space "
+                                f"({getattr(exc, 'strerror', None) or exc}); points are computed but not stored")
+            self.unstored += 1
+            LOGGER.warning("sweep cache: %s", self.write_error)
+            return False
+        return True
 
     def __contains__(self, key) -> bool:
         return self.get(key) is not None

@@ -12,6 +12,8 @@
 
 Only the parent writes the cache, one transaction per point, as results arrive: a
 cancelled or failed sweep keeps every finished point and never leaves a partial entry.
+When the disk is full the sweep goes on without storing; the result says so
+(:attr:`SweepResult.uncached`, :attr:`SweepResult.cache_notice`).
 The table follows the thesis's analysis ([thesis] §3.4): order amplitudes of input and
 output torque and their magnification ratio per test point and engine order.
 """
@@ -33,7 +35,8 @@ from dampersim.parameters import validate
 from dampersim.results import ANALYSIS_WINDOW
 from dampersim.solver.linear import check_time_step
 from dampersim.sweeps import cache as _cache
-from dampersim.sweeps.backends import SCHEDULER_ENV, DaskBackend, PoolBackend, compute_task, cpu_count, environment
+from dampersim.sweeps.backends import (SCHEDULER_ENV, DaskBackend, PoolBackend, check_scheduler_address, compute_task,
+                                       cpu_count, environment)
 from dampersim.sweeps.grid import TestPoint
 from dampersim.analysis.metrics import magnification_ratio
 from dampersim.units import rad_s_to_rpm
@@ -109,7 +112,8 @@ class SweepResult:
     [n_points, n_bins] of amplitude spectra [N m] up to 1000 Hz (FFT colourmaps, [thesis]
     §6.2.1). wall_time: seconds the whole sweep took; computed / from_cache: how many of
     the test points were simulated now / read from the cache (a point listed twice is
-    simulated once and counted twice).
+    simulated once and counted twice). uncached: computed test points that could not be
+    stored (full disk); cache_notice: one line for the page saying so, or None.
     """
 
     table: pd.DataFrame
@@ -123,6 +127,8 @@ class SweepResult:
     from_cache: int
     executor: str
     keys: tuple
+    uncached: int = 0
+    cache_notice: str | None = None
 
     @property
     def n_points(self) -> int:
@@ -195,7 +201,9 @@ def _resolve_executor(executor, scheduler):
         )
     address = (scheduler or env_sched) if executor == "dask" else None
     if address is not None and not isinstance(address, str):
-        raise InputError(f"scheduler = {address!r}: accepted is an address such as tcp://host:8786")
+        raise InputError(f"scheduler = {address!r}: accepted is an address such as tls://host:8786")
+    if address is not None:
+        check_scheduler_address(address)
     return executor, address
 
 
@@ -328,7 +336,7 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
             if rec is not None:
                 records[k] = rec
                 cached_keys.add(k)
-    state = {"done": sum(len(slots_of[k]) for k in cached_keys), "computed": 0}
+    state = {"done": sum(len(slots_of[k]) for k in cached_keys), "computed": 0, "uncached": 0}
     n_from_cache = state["done"]
     if progress is not None:
         progress(state["done"], total, n_from_cache)
@@ -344,8 +352,8 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
                 rec = _cache.PointRecord.from_bytes(outcome[1], key=k)
             except ValueError as exc:
                 return SweepPointFailed(p.speed_rpm, p.mean_torque, "ValueError", f"result damaged in transfer: {exc}")
-            if store is not None:
-                store.put(k, outcome[1])
+            if store is not None and not store.put(k, outcome[1]):  # full disk: go on uncached
+                state["uncached"] += len(slots_of[k])
             records[k] = rec
             state["done"] += len(slots_of[k])
             state["computed"] += len(slots_of[k])
@@ -426,10 +434,16 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
     if cancelled and len(records) < len(slots_of):
         raise SweepCancelled(state["done"], total, state["computed"], n_from_cache)
 
-    return _assemble(points, keys, records, cached_keys, orders, executor, time.perf_counter() - t_start)
+    notice = None
+    if state["uncached"]:
+        notice = (f"{state['uncached']} of {total} test points were computed but not cached: "
+                  f"{getattr(store, 'write_error', None) or 'the cache could not be written'}. "
+                  "Free disk space to keep results for the next run.")
+    return _assemble(points, keys, records, cached_keys, orders, executor, time.perf_counter() - t_start,
+                     uncached=state["uncached"], cache_notice=notice)
 
 
-def _assemble(points, keys, records, cached_keys, orders, executor, wall):
+def _assemble(points, keys, records, cached_keys, orders, executor, wall, uncached=0, cache_notice=None):
     orders_arr = np.asarray(orders, dtype=float)
     n_o = orders_arr.size
     cols = {c: [] for c in TABLE_COLUMNS}
@@ -485,6 +499,8 @@ def _assemble(points, keys, records, cached_keys, orders, executor, wall):
         from_cache=sum(k in cached_keys for k in keys),
         executor=executor,
         keys=tuple(keys),
+        uncached=int(uncached),
+        cache_notice=cache_notice,
     )
 
 

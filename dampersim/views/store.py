@@ -8,15 +8,35 @@ change can never return a stale view.
 Every key of this package (page views, single hysteresis loops, the Segments page's
 simulation, diagnoses) is made by :func:`view_key`. Sweep test points are cached per
 point by :mod:`dampersim.sweeps` as usual, so a cancelled sweep keeps its finished points.
+
+No pickle: whoever could write a pickle into a cache could run code as the server, so both
+stores (views, parameter sets) use :class:`SafeDisk`. Keys are text; values are stored as
+JSON (numpy arrays inside as tagged base64 with their dtype and shape, so they come back as
+the same arrays; NaN kept) or, for a :class:`~dampersim.results.SimulationResult`, as the
+Parquet file of :meth:`~dampersim.results.SimulationResult.save`. A pickled row (written by
+an older version or planted) is refused and reads as missing. The folders are made by
+:func:`dampersim.locations.private_dir` (0700, refused when others may write them).
+
+A damaged database file (``cache.db`` that SQLite cannot read) is moved aside with the
+folder (``views.corrupt-<time>``), a fresh store is opened and a warning logged; the page
+just computes its view again.
 """
 
 from __future__ import annotations
 
+import base64
 import functools
 import hashlib
 import inspect
+import json
+import logging
+import math
 import os
 import re
+import sqlite3
+import tempfile
+import threading
+import time
 
 import diskcache
 import numpy as np
@@ -24,37 +44,220 @@ import numpy as np
 from dampersim import keys
 from dampersim.errors import InputError
 from dampersim.parameters import dumps_toml, to_dict
-from dampersim.locations import cache_dir
+from dampersim.locations import cache_dir, private_dir
+
+LOGGER = logging.getLogger("dampersim.views.store")
 
 #: Sub-directories of :func:`dampersim.locations.cache_dir` used here.
 VIEWS_SUBDIR = "views"
 SETS_SUBDIR = "parameter-sets"
 #: Size limit of the view cache [bytes].
 VIEWS_SIZE_LIMIT = 2 * 2**30
-#: Bumped when the content of a cached view changes shape.
-VIEW_FORMAT = 1
+#: Bumped when the content of a cached view changes shape (2: JSON instead of pickle).
+VIEW_FORMAT = 2
 #: Labels of a parameter set, not physics: never part of a key, never carried as overrides.
 LABEL_NAMES = ("name", "source")
 
 _STORES: dict = {}
+_LOCK = threading.Lock()
+#: Messages of the stores recovered in this process (newest last), for a page to show.
+RECOVERIES: list = []
+
+# --------------------------------------------------------------------------- encoding
+_JSON_MAGIC = b"DSV1J\n"
+_RESULT_MAGIC = b"DSV1R\n"
+_ARRAY_TAG = "__ndarray__"
+_TUPLE_TAG = "__tuple__"
+
+
+def _encode_obj(obj):
+    """``obj`` as JSON-able data; numpy arrays tagged (base64, dtype, shape)."""
+    if isinstance(obj, dict):
+        return {str(k): _encode_obj(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_encode_obj(v) for v in obj]
+    if isinstance(obj, tuple):
+        return {_TUPLE_TAG: [_encode_obj(v) for v in obj]}
+    if isinstance(obj, np.ndarray):
+        if obj.dtype.kind in "biufc":
+            arr = np.ascontiguousarray(obj)
+            return {_ARRAY_TAG: base64.b64encode(arr.tobytes()).decode("ascii"), "dtype": arr.dtype.str,
+                    "shape": list(arr.shape)}
+        return _encode_obj(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if obj is None or isinstance(obj, (str, int, float)):
+        return obj
+    to_plotly = getattr(obj, "to_plotly_json", None)  # plotly figures and graph objects
+    if callable(to_plotly):
+        return _encode_obj(to_plotly())
+    raise TypeError(f"a view value of type {type(obj).__name__} cannot be stored as JSON")
+
+
+def _decode_obj(obj):
+    if isinstance(obj, dict):
+        if _ARRAY_TAG in obj and set(obj) == {_ARRAY_TAG, "dtype", "shape"}:
+            dtype = np.dtype(obj["dtype"])
+            if dtype.kind not in "biufc":
+                raise ValueError(f"stored array of dtype {dtype} refused")
+            raw = base64.b64decode(obj[_ARRAY_TAG])
+            return np.frombuffer(raw, dtype=dtype).reshape(obj["shape"]).copy()
+        if set(obj) == {_TUPLE_TAG}:
+            return tuple(_decode_obj(v) for v in obj[_TUPLE_TAG])
+        return {k: _decode_obj(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_decode_obj(v) for v in obj]
+    return obj
+
+
+def encode_value(value) -> bytes:
+    """The bytes a store keeps for ``value`` (JSON, or Parquet for a SimulationResult).
+    Raises TypeError for a value that is neither."""
+    from dampersim.results import SimulationResult
+
+    if isinstance(value, SimulationResult):
+        fd, tmp = tempfile.mkstemp(prefix=".result-", suffix=".parquet", dir=private_dir(VIEWS_SUBDIR))
+        os.close(fd)
+        try:
+            value.save(tmp)
+            with open(tmp, "rb") as fh:
+                return _RESULT_MAGIC + fh.read()
+        finally:
+            _unlink(tmp)
+    text = json.dumps(_encode_obj(value), separators=(",", ":"), allow_nan=True)
+    return _JSON_MAGIC + text.encode("ascii")
+
+
+def decode_value(data: bytes):
+    """Inverse of :func:`encode_value`; raises ValueError for anything else."""
+    data = bytes(data)
+    if data.startswith(_JSON_MAGIC):
+        return _decode_obj(json.loads(data[len(_JSON_MAGIC):].decode("ascii")))
+    if data.startswith(_RESULT_MAGIC):
+        from dampersim.results import SimulationResult
+
+        fd, tmp = tempfile.mkstemp(prefix=".result-", suffix=".parquet", dir=private_dir(VIEWS_SUBDIR))
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data[len(_RESULT_MAGIC):])
+            return SimulationResult.load(tmp)
+        finally:
+            _unlink(tmp)
+    raise ValueError("stored entry is not a dampersim view (unknown format)")
+
+
+def _unlink(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+class SafeDisk(diskcache.Disk):
+    """diskcache serialisation without pickle: text/number keys only, values through
+    :func:`encode_value`; a pickled row is refused instead of unpickled."""
+
+    def put(self, key):
+        if type(key) not in (str, bytes, int, float):
+            raise TypeError(f"cache key of type {type(key).__name__}: accepted are text keys")
+        return super().put(key)
+
+    def get(self, key, raw):
+        if not raw:
+            raise ValueError("pickled cache key refused")
+        return super().get(key, raw)
+
+    def store(self, value, read, key=diskcache.core.UNKNOWN):
+        if read:
+            raise TypeError("file values are not stored in the view cache")
+        return super().store(encode_value(value), False, key=key)
+
+    def fetch(self, mode, filename, value, read):
+        if mode == diskcache.core.MODE_PICKLE:
+            raise ValueError("pickled cache entry refused")
+        if read:
+            raise TypeError("file values are not read from the view cache")
+        data = super().fetch(mode, filename, value, False)
+        if isinstance(data, str):
+            data = data.encode("utf-8")
+        if not isinstance(data, (bytes, bytearray)):
+            raise ValueError("stored entry is not a dampersim view")
+        return decode_value(data)
+
+
+def _is_corruption(exc: BaseException) -> bool:
+    """A SQLite error that means the database file is damaged (not locked, not full)."""
+    return isinstance(exc, sqlite3.DatabaseError) and not isinstance(exc, sqlite3.OperationalError)
+
+
+def _move_aside(path: str, exc: BaseException) -> None:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    target = f"{path}.corrupt-{stamp}-{os.getpid()}"
+    try:
+        os.replace(path, target)
+    except OSError:
+        target = None
+    message = (f"the cache folder {os.path.basename(path)!r} held a damaged database ({exc}); "
+               + (f"moved aside as {os.path.basename(target)!r}" if target else "it could not be moved aside")
+               + " and a fresh store opened: its views are computed again")
+    LOGGER.warning(message)
+    RECOVERIES.append(message)
 
 
 def _open(sub: str, size_limit=VIEWS_SIZE_LIMIT):
-    path = str(cache_dir() / sub)
-    key = (os.getpid(), path)  # never reuse a SQLite connection across a fork
-    store = _STORES.get(key)
-    if store is None:
+    with _LOCK:
+        path = str(cache_dir() / sub)
+        key = (os.getpid(), path)  # never reuse a SQLite connection across a fork
+        store = _STORES.get(key)
+        if store is not None:
+            return store
+        private_dir(sub)  # 0700, refused when another user owns it or others may write
         try:
-            os.makedirs(path, exist_ok=True)
-            store = diskcache.Cache(path, size_limit=size_limit)
-        except OSError as exc:
-            raise InputError(f"cache directory {path!r} cannot be used ({exc.strerror or exc}); set DAMPERSIM_CACHE_DIR to a writable folder") from None
+            try:
+                store = diskcache.Cache(path, size_limit=size_limit, disk=SafeDisk)
+            except sqlite3.DatabaseError as exc:
+                if not _is_corruption(exc):
+                    raise
+                _move_aside(path, exc)
+                private_dir(sub)
+                store = diskcache.Cache(path, size_limit=size_limit, disk=SafeDisk)
+        except (OSError, sqlite3.Error) as exc:
+            raise InputError(f"cache folder {sub!r} cannot be used ({getattr(exc, 'strerror', None) or exc}); "
+                             "set DAMPERSIM_CACHE_DIR to a writable folder") from None
         _STORES[key] = store
-    return store
+        return store
+
+
+def _recover(sub: str, exc: BaseException) -> None:
+    """Close the damaged store ``sub`` of this process and move its folder aside."""
+    with _LOCK:
+        path = str(cache_dir() / sub)
+        store = _STORES.pop((os.getpid(), path), None)
+        if store is not None:
+            try:
+                store.close()
+            except Exception:
+                pass
+        _move_aside(path, exc)
+
+
+def _guarded(sub: str, size_limit, action):
+    """Run ``action(store)``; when the database turns out damaged, recover and retry once."""
+    try:
+        return action(_open(sub, size_limit))
+    except sqlite3.DatabaseError as exc:
+        if not _is_corruption(exc):
+            raise
+        _recover(sub, exc)
+        return action(_open(sub, size_limit))
 
 
 def view_store():
-    """The diskcache of views (``cache_dir()/"views"``)."""
+    """The diskcache of views (``cache_dir()/"views"``, JSON values, see :class:`SafeDisk`)."""
     return _open(VIEWS_SUBDIR)
 
 
@@ -89,19 +292,21 @@ def view_key(kind: str, system, state: dict, *, module: str) -> str:
 
 # --------------------------------------------------------------------------- entries
 def load_entry(key: str):
-    """The value stored under ``key`` in the view store, or None (missing or unreadable)."""
+    """The value stored under ``key`` in the view store, or None (missing, unreadable,
+    not ours, or the store damaged: then it is recovered, see the module docstring)."""
     try:
-        return view_store().get(key, default=None, retry=True)
+        return _guarded(VIEWS_SUBDIR, VIEWS_SIZE_LIMIT, lambda store: store.get(key, default=None, retry=True))
     except Exception:
         return None
 
 
 def save_entry(key: str, value) -> None:
-    """Store ``value`` under ``key``; a value that cannot be stored is not an error."""
+    """Store ``value`` under ``key``; a value that cannot be stored (not JSON, disk full,
+    folder refused) is not an error: the view is shown uncached."""
     try:
-        view_store().set(key, value, retry=True)
-    except Exception:
-        pass
+        _guarded(VIEWS_SUBDIR, VIEWS_SIZE_LIMIT, lambda store: store.set(key, value, retry=True))
+    except Exception as exc:
+        LOGGER.debug("view %s not cached: %s", key[:12], exc)
 
 
 def load_view(key: str):
@@ -152,8 +357,12 @@ def cached_view(key_of):
 
 
 # --------------------------------------------------------------------------- parameter sets
+#: Size limit of the parameter-set store [bytes].
+SETS_SIZE_LIMIT = 2**28
+
+
 def _sets_store():
-    return _open(SETS_SUBDIR, size_limit=2**28)
+    return _open(SETS_SUBDIR, size_limit=SETS_SIZE_LIMIT)
 
 
 def valid_set_id(set_id) -> bool:
@@ -165,7 +374,7 @@ def store_parameter_set(system) -> str:
     """Store a parameter set on this server; returns its id (16 hex digits)."""
     text = dumps_toml(system)
     set_id = hashlib.sha256(text.encode()).hexdigest()[:16]
-    _sets_store().set(set_id, text, retry=True)
+    _guarded(SETS_SUBDIR, SETS_SIZE_LIMIT, lambda store: store.set(set_id, text, retry=True))
     return set_id
 
 
@@ -174,9 +383,10 @@ def load_parameter_set(set_id: str):
     if not valid_set_id(set_id):
         return None
     try:
-        return _sets_store().get(set_id, default=None, retry=True)
+        text = _guarded(SETS_SUBDIR, SETS_SIZE_LIMIT, lambda store: store.get(set_id, default=None, retry=True))
     except Exception:
         return None
+    return text if isinstance(text, str) else None
 
 
 __all__ = [
@@ -184,6 +394,10 @@ __all__ = [
     "SETS_SUBDIR",
     "VIEW_FORMAT",
     "LABEL_NAMES",
+    "RECOVERIES",
+    "SafeDisk",
+    "encode_value",
+    "decode_value",
     "view_store",
     "close_stores",
     "view_key",

@@ -22,8 +22,8 @@ def test_pulsation_run_and_bad_pressure():
 
 def test_pulsation_dominant_order_sweep():
     seen = []
-    fig = _plain(pulsation.sweep)(lambda p: seen.append(p), 1, 2.5, [])
-    assert isinstance(fig, (go.Figure, dict)) and seen[-1] == ("9", "9")
+    fig, message = _plain(pulsation.sweep)(lambda p: seen.append(p), 1, 2.5, [])
+    assert isinstance(fig, (go.Figure, dict)) and seen[-1] == ("9", "9") and message == ""
 
 
 def test_study_quick_run_shows_checks():
