@@ -1,0 +1,406 @@
+"""The dashboard's background-callback manager (pages/_background.py), driven the way Dash
+drives it: ``call_job_fn`` for the first request, then ``get_progress`` / ``get_result`` /
+``job_running`` for every poll and ``terminate_job`` for a cancel, with small job functions
+(sleep and return) instead of sweeps, and real job processes counted with psutil.
+
+Job processes are recognised as this test's descendants that lead their own session (a
+job process calls setsid first; nothing else in the test does).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import subprocess
+import time
+
+import psutil
+import pytest
+from dash.background_callback.managers import BaseBackgroundCallbackManager
+from flask import Flask
+
+from pages import _background
+from pages._background import SESSION_COOKIE, install_sessions, make_manager, shutdown_jobs
+
+#: Poll period of the test loops [s]: like the pages' interval (0.3 s), a bit faster.
+POLL_S = 0.05
+
+
+# ----------------------------------------------------------------------- job functions
+def sleep_and_return(job):
+    time.sleep(job.get("sleep", 0.5))
+    return {"pid": os.getpid(), "tag": job.get("tag")}
+
+
+def spawn_child_and_sleep(job):
+    child = subprocess.Popen(["sleep", "60"])  # a stand-in for a sweep's pool worker
+    with open(job["child_file"], "w") as fh:
+        fh.write(str(child.pid))
+    time.sleep(60)
+    return {}
+
+
+def fail_with_a_path(job):
+    raise RuntimeError("could not open /srv/secret/dampersim/cache/views/x.arrow")
+
+
+def report_progress(set_progress, job):
+    set_progress(("1", "2", "half way"))
+    time.sleep(job.get("sleep", 0.5))
+    return {"ok": True}
+
+
+FUNCTIONS = {f.__name__: f for f in (sleep_and_return, spawn_child_and_sleep, fail_with_a_path, report_progress)}
+
+
+def _register(name, progress=False):
+    """Register a job function as Dash does for a @callback(background=True)."""
+    return BaseBackgroundCallbackManager.register_func(FUNCTIONS[name], progress, f"test.{name}")
+
+
+class Caller:
+    """One browser's view of a background callback: the first call, then polls."""
+
+    def __init__(self, manager, name, job, *, session=None, progress=False):
+        self.manager, self.session = manager, session
+        fn_key = _register(name, progress)
+        self.key = f"cache-{name}-{id(self)}-{time.monotonic_ns()}"
+        with self._request():
+            self.job = manager.call_job_fn(self.key, manager.func_registry[fn_key], [job], {"args": {}})
+        self.result = manager.UNDEFINED
+        self.progress = []
+
+    def _request(self):
+        headers = {"Cookie": f"{SESSION_COOKIE}={self.session}"} if self.session else {}
+        return _FLASK.test_request_context("/_dash-update-component", method="POST", headers=headers)
+
+    def poll(self):
+        """One poll as the renderer sends it; True while the job is still running."""
+        with self._request():
+            progress = self.manager.get_progress(self.key)
+            if progress:
+                self.progress.append(progress)
+            if self.result is self.manager.UNDEFINED:
+                self.result = self.manager.get_result(self.key, self.job)
+            return self.manager.job_running(self.job)
+
+    def cancel(self):
+        with self._request():
+            self.manager.terminate_job(self.job)
+
+
+_FLASK = Flask("test_background_manager")
+
+
+def poll_all(callers, budget_s, watch=None):
+    """Poll every caller until its job no longer runs (as the renderer does: it stops when
+    ``job_running`` says so); ``watch()`` is called on each round. Fails after
+    ``budget_s`` seconds."""
+    deadline = time.monotonic() + budget_s
+    active = list(callers)
+    while active:
+        assert time.monotonic() < deadline, f"jobs still running after {budget_s} s"
+        active = [c for c in active if c.poll()]
+        if watch:
+            watch()
+        time.sleep(POLL_S)
+
+
+def job_processes():
+    """Live job processes below this test process (session leaders, not zombies)."""
+    out = []
+    for p in psutil.Process().children(recursive=True):
+        try:
+            if os.getsid(p.pid) == p.pid and p.status() != psutil.STATUS_ZOMBIE:
+                out.append(p)
+        except (psutil.NoSuchProcess, ProcessLookupError):
+            continue
+    return out
+
+
+def gone(pid):
+    try:
+        return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return True
+
+
+def wait_until(predicate, budget_s, what):
+    deadline = time.monotonic() + budget_s
+    while not predicate():
+        assert time.monotonic() < deadline, f"{what} not within {budget_s} s"
+        time.sleep(POLL_S)
+
+
+@pytest.fixture
+def manager_factory(tmp_path):
+    made = []
+
+    def make(**limits):
+        limits.setdefault("idle_timeout_s", 10.0)
+        m = make_manager(tmp_path / "callbacks", registry_dir=tmp_path / "jobs", **limits)
+        made.append(m)
+        return m
+
+    yield make
+    for m in made:
+        m.shutdown()
+        _background._MANAGERS.remove(m)
+        BaseBackgroundCallbackManager.managers.remove(m)
+
+
+# ----------------------------------------------------------------------- tests
+def test_global_limit_holds_for_eight_submissions(manager_factory):
+    manager = manager_factory(max_jobs=2, per_session=8)
+    callers = [Caller(manager, "sleep_and_return", {"sleep": 0.4, "tag": i}) for i in range(8)]
+    peak = []
+    poll_all(callers, budget_s=20, watch=lambda: peak.append(len(job_processes())))  # 4 rounds of 0.4 s + forks
+    assert max(peak) == 2  # reached, never exceeded
+    assert sorted(c.result["tag"] for c in callers) == list(range(8))
+    assert len({c.result["pid"] for c in callers}) == 8
+
+
+def test_queued_job_reports_its_place_in_the_queue(manager_factory):
+    manager = manager_factory(max_jobs=1, per_session=8)
+    callers = [Caller(manager, "report_progress", {"sleep": 0.4}, progress=True) for _ in range(3)]
+    for c in callers:
+        c.poll()
+    assert callers[2].progress[0] == ["0", "1", "queued: 1 job ahead"]
+    poll_all(callers, budget_s=15)
+    assert ["1", "2", "half way"] in callers[2].progress  # the job's own progress once it ran
+    assert all(c.result == {"ok": True} for c in callers)
+
+
+def test_per_session_limit_lets_other_sessions_pass(manager_factory):
+    manager = manager_factory(max_jobs=3, per_session=1)
+    a = [Caller(manager, "sleep_and_return", {"sleep": 0.4}, session="a" * 32) for _ in range(3)]
+    b = Caller(manager, "sleep_and_return", {"sleep": 0.4}, session="b" * 32)
+    rows = []
+
+    def watch():
+        with manager.registry._tx() as con:
+            rows.append({r[0]: r[1] for r in con.execute(
+                "SELECT session, COUNT(*) FROM jobs WHERE state = 'running' GROUP BY session")})
+
+    poll_all(a + [b], budget_s=15, watch=watch)
+    assert max(r.get("a" * 32, 0) for r in rows) == 1
+    assert rows[0].get("b" * 32) == 1  # B started at once although A queued first
+    assert all(isinstance(c.result, dict) for c in a + [b])
+
+
+def test_identical_work_is_computed_once_and_reaches_every_waiter(manager_factory):
+    manager = manager_factory(max_jobs=4)
+    callers = [Caller(manager, "sleep_and_return", {"work": "sweep-1", "nonce": i, "sleep": 0.5},
+                      session=s * 32) for i, s in enumerate("ab")]
+    other = Caller(manager, "sleep_and_return", {"work": "sweep-2", "sleep": 0.5})
+    peak = []
+    poll_all(callers + [other], budget_s=10, watch=lambda: peak.append(len(job_processes())))
+    assert max(peak) == 2  # sweep-1 once, sweep-2 once
+    assert callers[0].result == callers[1].result and callers[0].result["pid"] != other.result["pid"]
+
+
+def test_cancel_of_a_shared_job_keeps_it_running_for_the_other_waiter(manager_factory):
+    manager = manager_factory(max_jobs=2)
+    first, second = (Caller(manager, "sleep_and_return", {"work": "w", "sleep": 1.0}) for _ in range(2))
+    wait_until(lambda: first.poll() and second.poll() and job_processes(), 5, "the shared job process")
+    (shared,) = job_processes()
+    first.cancel()
+    assert first.poll() is False  # the cancelled waiter stops
+    assert job_processes() == [shared]
+    poll_all([second], budget_s=10)
+    assert second.result["pid"] == shared.pid and first.result is manager.UNDEFINED
+    # the last waiter's cancel ends the job
+    alone = Caller(manager, "sleep_and_return", {"work": "w2", "sleep": 30})
+    wait_until(lambda: alone.poll() and job_processes(), 5, "the job process")
+    pid = job_processes()[0].pid
+    alone.cancel()
+    wait_until(lambda: gone(pid), 3, "termination on cancel")  # SIGTERM, 0.5 s grace, SIGKILL
+
+
+def test_unpolled_job_is_killed_with_its_children_after_the_idle_timeout(manager_factory, tmp_path):
+    manager = manager_factory(max_jobs=2, idle_timeout_s=1.0)
+    child_file = tmp_path / "child.pid"
+    forgotten = Caller(manager, "spawn_child_and_sleep", {"child_file": str(child_file)})
+    wait_until(lambda: forgotten.poll() and child_file.exists() and child_file.read_text(), 10, "the job's child")
+    job_pid = manager.registry.job(manager.registry.waiter(forgotten.job).job_id)["pid"]
+    child_pid = int(child_file.read_text())
+    # another tab keeps polling its own job: its polls run the reaper
+    busy = Caller(manager, "sleep_and_return", {"sleep": 4.0})
+    started = time.monotonic()
+    wait_until(lambda: busy.poll() is not None and gone(job_pid) and gone(child_pid), 5, "the idle job's end")
+    assert time.monotonic() - started >= 0.5  # not before the timeout (1 s after the last poll)
+    assert forgotten.poll() is False
+
+
+def test_killed_job_process_is_reported_as_failed(manager_factory):
+    manager = manager_factory(max_jobs=2)
+    caller = Caller(manager, "sleep_and_return", {"sleep": 30})
+    wait_until(lambda: caller.poll() and job_processes(), 5, "the job process")
+    os.kill(job_processes()[0].pid, signal.SIGKILL)
+    poll_all([caller], budget_s=5)  # the reaper runs every second
+    error = caller.result["background_callback_error"]
+    assert "stopped without a result" in error["msg"] and error["tb"] == ""
+
+
+def test_browser_never_gets_a_traceback_or_a_server_path(manager_factory):
+    manager = manager_factory(max_jobs=2)
+    caller = Caller(manager, "fail_with_a_path", {})
+    poll_all([caller], budget_s=10)
+    error = caller.result["background_callback_error"]
+    text = f"{error['msg']}\n{error['tb']}"
+    assert "unexpected error (incident " in error["msg"]
+    assert "Traceback" not in text and "/srv" not in text and "secret" not in text
+
+
+def test_shutdown_leaves_no_orphan_process(manager_factory, tmp_path):
+    manager = manager_factory(max_jobs=2)
+    files = [tmp_path / f"child{i}.pid" for i in range(2)]
+    callers = [Caller(manager, "spawn_child_and_sleep", {"child_file": str(f)}) for f in files]
+    wait_until(lambda: all([c.poll() for c in callers]) and all(f.exists() and f.read_text() for f in files), 10,
+               "two jobs with children")
+    pids = [p.pid for p in job_processes()] + [int(f.read_text()) for f in files]
+    assert len(pids) == 4
+    assert len(shutdown_jobs()) == 2
+    wait_until(lambda: all(gone(pid) for pid in pids), 3, "every job process and child ending")
+
+
+def test_session_cookie_is_set_once_http_only_and_strict():
+    app = Flask("sessions")
+    install_sessions(app)
+    app.add_url_rule("/", "index", lambda: "ok")
+    client = app.test_client()
+    cookie = client.get("/").headers["Set-Cookie"]
+    assert cookie.startswith(f"{SESSION_COOKIE}=") and "HttpOnly" in cookie and "SameSite=Strict" in cookie
+    assert "Set-Cookie" not in client.get("/").headers  # the browser sent it back
+
+
+def _server_process(cache, registry, barrier, out):
+    """A second server process: its own manager on the same folders, three jobs."""
+    manager = make_manager(cache, registry_dir=registry, max_jobs=2, per_session=8)
+    barrier.wait()
+    callers = [Caller(manager, "sleep_and_return", {"sleep": 0.4}) for _ in range(3)]
+    poll_all(callers, budget_s=20)
+    out.put(sorted(c.result["pid"] if isinstance(c.result, dict) else None for c in callers))
+    barrier.wait()  # shutdown ends the jobs this process started, some of them for the other one
+    manager.shutdown()
+
+
+def test_two_server_processes_share_one_global_limit(tmp_path):
+    cache, registry = tmp_path / "callbacks", tmp_path / "jobs"
+    ctx = multiprocessing.get_context("fork")
+    barrier, out = ctx.Barrier(2), ctx.Queue()
+    servers = [ctx.Process(target=_server_process, args=(cache, registry, barrier, out)) for _ in range(2)]
+    for s in servers:
+        s.start()
+    peak, deadline = 0, time.monotonic() + 30  # 6 jobs of 0.4 s on 2 slots, plus forks on a busy machine
+    while any(s.is_alive() for s in servers):
+        assert time.monotonic() < deadline, "server processes still running"
+        peak = max(peak, len(job_processes()))
+        time.sleep(0.02)
+    results = [out.get(timeout=5) for _ in servers]
+    assert all(s.exitcode == 0 for s in servers)
+    assert all(len(r) == 3 and None not in r for r in results)
+    assert peak == 2  # reached, never exceeded, although each process alone would allow 2
+
+
+# ----------------------------------------------------------------------- through Dash's HTTP endpoint
+def _dash_app(manager):
+    from dash import Dash, Input, Output, dcc, html
+
+    app = Dash("jobs_http_test", background_callback_manager=manager)
+    install_sessions(app.server)
+    app.layout = html.Div([dcc.Store(id="job"), html.Div(id="out")])
+
+    # on_error shows the error text in the page, as an app that reports failures would
+    @app.callback(Output("out", "children"), Input("job", "data"), background=True, prevent_initial_call=True,
+                  on_error=lambda err: str(err))
+    def run(job):
+        if job.get("fail"):
+            fail_with_a_path(job)
+        return sleep_and_return(job)["pid"]
+
+    return app
+
+
+class HttpTab:
+    """A browser tab speaking Dash's callback protocol through Flask's test client."""
+
+    def __init__(self, app):
+        import json
+        import re
+
+        self.client = app.server.test_client()
+        index = self.client.get("/").get_data(as_text=True)
+        config = re.search(r'<script id="_dash-config" type="application/json">(.*?)</script>', index, re.S)
+        self.end = {"endId": json.loads(config.group(1))["end_id"]}
+
+    def start(self, job):
+        self.body = {"output": "out.children", "outputs": {"id": "out", "property": "children"},
+                     "inputs": [{"id": "job", "property": "data", "value": job}], "state": [],
+                     "changedPropIds": ["job.data"]}
+        first = self.client.post("/_dash-update-component", json=self.body, query_string=self.end).get_json()
+        self.handles = {"cacheKey": first["cacheKey"], "job": first["job"], **self.end}
+        self.answer = None
+
+    def poll(self):
+        """One poll; True while the answer is pending."""
+        resp = self.client.post("/_dash-update-component", json=self.body, query_string=self.handles)
+        if resp.status_code == 200 and (resp.get_json() or {}).get("response") is not None:
+            self.answer = resp
+        elif resp.status_code != 200:
+            self.answer = resp
+        return self.answer is None
+
+
+def test_through_dash_http_identical_work_is_shared_and_errors_stay_private(manager_factory):
+    manager = manager_factory(max_jobs=2)
+    app = _dash_app(manager)
+    tabs = [HttpTab(app) for _ in range(2)]
+    assert tabs[0].client.get_cookie(SESSION_COOKIE).value != tabs[1].client.get_cookie(SESSION_COOKIE).value
+    peak = []
+    for i, tab in enumerate(tabs):
+        tab.start({"work": "same sweep", "nonce": i, "sleep": 0.5})
+    deadline = time.monotonic() + 10  # 0.5 s of work plus the fork
+    while any([tab.poll() for tab in tabs]):
+        assert time.monotonic() < deadline
+        peak.append(len(job_processes()))
+        time.sleep(POLL_S)
+    answers = [tab.answer.get_json()["response"]["out"]["children"] for tab in tabs]
+    assert answers[0] == answers[1] and max(peak) == 1  # one process, both tabs answered
+    tab = tabs[0]
+    tab.start({"fail": True})
+    deadline = time.monotonic() + 10
+    while tab.poll():
+        assert time.monotonic() < deadline
+        time.sleep(POLL_S)
+    text = tab.answer.get_json()["response"]["out"]["children"]
+    assert "unexpected error (incident " in text
+    assert "Traceback" not in text and "/srv" not in text and "secret" not in text
+
+
+def _doomed_server(cache, registry, out):
+    """A server process that starts a job and is then killed (a WSGI worker timeout)."""
+    manager = make_manager(cache, registry_dir=registry, max_jobs=2)
+    caller = Caller(manager, "sleep_and_return", {"work": "long sweep", "sleep": 1.0})
+    wait_until(lambda: caller.poll() and manager.registry.running_count(), 5, "the job start")
+    out.put(manager.registry.waiter(caller.job).job_id)
+    time.sleep(60)
+
+
+def test_a_killed_server_process_leaves_its_job_to_the_others(manager_factory, tmp_path):
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    doomed = ctx.Process(target=_doomed_server, args=(tmp_path / "callbacks", tmp_path / "jobs", out))
+    doomed.start()
+    try:
+        job_id = out.get(timeout=10)
+        manager = manager_factory(max_jobs=2)  # another worker on the same folders
+        caller = Caller(manager, "sleep_and_return", {"work": "long sweep", "sleep": 1.0})
+        assert manager.registry.waiter(caller.job).job_id == job_id  # shared, not started again
+        os.kill(doomed.pid, signal.SIGKILL)
+        doomed.join()
+        poll_all([caller], budget_s=10)  # the rest of 1 s of work
+        assert caller.result["pid"] == manager.registry.job(job_id)["pid"]
+    finally:
+        doomed.kill()

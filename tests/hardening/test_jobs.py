@@ -1,0 +1,191 @@
+"""Job registry (dampersim.jobs): limits, sharing, cancelling, reaping and settings, with
+stand-in processes (``sleep``) instead of dashboard jobs.
+
+Every test runs in well under a second except the ones that wait for a real process to be
+terminated; budgets are stated where a time is asserted.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import psutil
+import pytest
+
+from dampersim.errors import InputError
+from dampersim.jobs import (CANCELLED, DONE, FAILED, QUEUED, RUNNING, JobRegistry, Limits, process_alive,
+                            process_ctime, terminate_tree)
+
+
+@pytest.fixture
+def registry_dir(tmp_path):
+    path = tmp_path / "jobs"
+    path.mkdir(mode=0o700)
+    return path
+
+
+def _sleeper(seconds=30):
+    """A stand-in job process in its own session (like a real job, which calls setsid)."""
+    return subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({seconds})"], start_new_session=True)
+
+
+def _fake_start(job_id, payload):
+    return os.getpid()  # a live process that is not signalled by these tests
+
+
+def test_settings_come_from_the_environment_and_bad_values_name_variable_value_and_range(monkeypatch):
+    monkeypatch.setenv("DAMPERSIM_MAX_JOBS", "3")
+    monkeypatch.setenv("DAMPERSIM_JOBS_PER_SESSION", "1")
+    assert Limits.resolve() == Limits(3, 1, 30.0)
+    assert Limits.resolve(max_jobs=5).max_jobs == 5  # an explicit value wins
+    for bad in ("0", "two", "-1", "1.5", "100000"):
+        monkeypatch.setenv("DAMPERSIM_MAX_JOBS", bad)
+        with pytest.raises(InputError) as err:
+            Limits.resolve()
+        assert "DAMPERSIM_MAX_JOBS" in str(err.value) and repr(bad) in str(err.value)
+        assert "whole number from 1 to 1024" in str(err.value)
+    monkeypatch.delenv("DAMPERSIM_MAX_JOBS")
+    monkeypatch.setenv("DAMPERSIM_JOBS_PER_SESSION", "x")
+    with pytest.raises(InputError, match="DAMPERSIM_JOBS_PER_SESSION = 'x'"):
+        Limits.resolve()
+    monkeypatch.delenv("DAMPERSIM_JOBS_PER_SESSION")
+    with pytest.raises(InputError, match="idle_timeout_s"):
+        Limits.resolve(idle_timeout_s=0)
+    assert Limits.resolve().max_jobs == len(os.sched_getaffinity(0))
+
+
+def test_registry_lives_in_a_private_folder(cache_dir):
+    reg = JobRegistry()
+    assert reg.path.parent == cache_dir / "jobs"
+    assert reg.path.parent.stat().st_mode & 0o777 == 0o700
+
+
+def test_dispatch_honours_global_and_per_session_limits(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=3, per_session=2)
+    a = [reg.submit("A").job_id for _ in range(4)]
+    b = [reg.submit("B").job_id for _ in range(2)]
+    started = reg.dispatch(_fake_start)
+    # oldest first, but A may run only 2: the third slot goes to B's first job
+    assert started == [a[0], a[1], b[0]]
+    assert reg.running_count() == 3
+    assert reg.dispatch(_fake_start) == []  # full: nothing more starts
+    assert [reg.job_state(j) for j in a[2:] + b[1:]] == [QUEUED] * 3
+    assert reg.queue_position(b[1]) == (2, 3)  # A's two queued jobs are older
+    reg.finish(a[0])
+    assert reg.dispatch(_fake_start) == [a[2]]  # A runs one job now: its next one is the oldest eligible
+    assert reg.job_state(a[0]) == DONE
+
+
+def test_per_session_queue_moves_when_the_session_frees_a_slot(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=4, per_session=1)
+    a = [reg.submit("A").job_id for _ in range(3)]
+    assert reg.dispatch(_fake_start) == [a[0]]  # free slots, but A may run one at a time
+    reg.finish(a[0])
+    assert reg.dispatch(_fake_start) == [a[1]]
+
+
+def test_identical_work_keys_share_one_job_until_it_is_finished(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=2)
+    first = reg.submit("A", "sweep-1")
+    second = reg.submit("B", "sweep-1")
+    other = reg.submit("B", "sweep-2")
+    plain = [reg.submit("A"), reg.submit("A")]  # no work key: never shared
+    assert second.shared and second.job_id == first.job_id and second.waiter_id != first.waiter_id
+    assert not other.shared and other.job_id != first.job_id
+    assert plain[0].job_id != plain[1].job_id
+    reg.dispatch(_fake_start)
+    assert reg.submit("C", "sweep-1").job_id == first.job_id  # running: still shared
+    reg.finish(first.job_id)
+    assert reg.submit("C", "sweep-1").job_id != first.job_id  # finished: a new job
+
+
+def test_cancel_ends_a_job_only_when_no_other_waiter_polls(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=2)
+    first = reg.submit("A", "w")
+    second = reg.submit("B", "w")
+    proc = _sleeper()
+    try:
+        reg.dispatch(lambda job, payload: proc.pid)
+        assert reg.cancel(first.waiter_id) is False
+        assert reg.job_state(first.job_id) == RUNNING and proc.poll() is None
+        assert reg.waiter(first.waiter_id).detached
+        assert reg.cancel(second.waiter_id) is True
+        assert reg.job_state(first.job_id) == CANCELLED
+        assert proc.wait(timeout=5) != 0  # terminated, not finished (it would sleep 30 s)
+        queued = reg.submit("A")
+        assert reg.cancel(queued.waiter_id) and reg.job_state(queued.job_id) == CANCELLED
+        assert reg.cancel("w-unknown") is False  # a forged handle does nothing
+    finally:
+        proc.kill()
+
+
+def test_reap_cancels_unpolled_jobs_and_fails_dead_ones(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=3, per_session=4, idle_timeout_s=0.3)
+    idle, polled, dead, waiting = (reg.submit("S") for _ in range(4))
+    procs = {idle.job_id: _sleeper(), polled.job_id: _sleeper(), dead.job_id: _sleeper()}
+    try:
+        reg.dispatch(lambda job, payload: procs[job].pid)
+        assert reg.job_state(waiting.job_id) == QUEUED
+        procs[dead.job_id].kill()
+        procs[dead.job_id].wait()
+        time.sleep(0.4)  # past the idle timeout (0.3 s)
+        for sub in (polled, dead):
+            reg.heartbeat(sub.waiter_id)
+        report = reg.reap()
+        assert report.idle == (idle.job_id,) and report.dropped == (waiting.job_id,)
+        assert report.failed == (dead.job_id,)
+        assert reg.job_state(dead.job_id) == FAILED and reg.job_state(polled.job_id) == RUNNING
+        assert procs[idle.job_id].wait(timeout=5) != 0
+        assert procs[polled.job_id].poll() is None
+    finally:
+        for p in procs.values():
+            p.kill()
+
+
+def test_terminate_tree_kills_the_process_group_but_never_a_reused_pid():
+    leader = subprocess.Popen([sys.executable, "-c",
+                               "import subprocess, sys, time; subprocess.Popen(['sleep', '30']); time.sleep(30)"],
+                              start_new_session=True)
+    try:
+        deadline = time.monotonic() + 10
+        while not psutil.Process(leader.pid).children() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        child = psutil.Process(leader.pid).children()[0]
+        ctime = process_ctime(leader.pid)
+        terminate_tree(leader.pid, ctime + 1.0)  # a different creation time: another process
+        assert leader.poll() is None and child.is_running()
+        terminate_tree(leader.pid, ctime)
+        assert leader.wait(timeout=5) != 0
+        child_gone = not child.is_running() or child.status() == psutil.STATUS_ZOMBIE
+        assert child_gone
+        assert not process_alive(leader.pid, ctime)
+    finally:
+        leader.kill()
+
+
+def test_shutdown_terminates_only_this_owners_jobs(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=2)
+    mine, theirs = reg.submit("A"), reg.submit("B")
+    procs = {mine.job_id: _sleeper(), theirs.job_id: _sleeper()}
+    try:
+        reg.dispatch(lambda job, payload: procs[job].pid)
+        with reg._tx() as con:  # the second job was started by another server process
+            con.execute("UPDATE jobs SET owner = 1 WHERE id = ?", (theirs.job_id,))
+        assert reg.shutdown() == [mine.job_id]
+        assert procs[mine.job_id].wait(timeout=5) != 0
+        assert procs[theirs.job_id].poll() is None and reg.job_state(theirs.job_id) == RUNNING
+    finally:
+        for p in procs.values():
+            p.kill()
+
+
+def test_sweep_workers_share_the_cores_among_running_jobs(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=8, per_session=8)
+    assert reg.sweep_workers(8) == 8
+    for _ in range(3):
+        reg.submit("A")
+    reg.dispatch(_fake_start)
+    assert reg.sweep_workers(8) == 2 and reg.sweep_workers(2) == 1
