@@ -185,6 +185,10 @@ def _cli_sweep(args):
             raise InputError(f"--{name} {value!r}: accepted is a positive time in s")
 
     out_dir = prepare_output(args.out, "folder")
+    if getattr(args, "allow_insecure_dask", False):  # the user said so explicitly
+        from dampersim.sweeps.backends import ALLOW_INSECURE_DASK_ENV
+
+        os.environ[ALLOW_INSECURE_DASK_ENV] = "1"
 
     bar = ProgressBar(sys.stderr, enabled=not args.no_progress)
     cancel = threading.Event()
@@ -310,7 +314,11 @@ def _grid_options(p, speeds, torque, orders, out) -> None:
                    help="where to compute (default: dask if a scheduler is given, else processes)")
     p.add_argument("--workers", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
-                   help=f"Dask scheduler address, e.g. tcp://host:8786 (default: ${SCHEDULER_ENV})")
+                   help=f"Dask scheduler address, e.g. tls://host:8786; plain tcp:// only on this machine unless "
+                        f"--allow-insecure-dask (default: ${SCHEDULER_ENV})")
+    p.add_argument("--allow-insecure-dask", action="store_true",
+                   help="accept an unencrypted tcp:// scheduler on another machine (a trusted network only: "
+                        "anyone who reaches it can run code in the workers)")
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per point [s]")
     p.add_argument("--window", type=float, default=None, metavar="S",
                    help="analysis window at the end of each record [s] (default 1.25, §3.4)")
