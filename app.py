@@ -200,28 +200,15 @@ def _env_int(name):
 
 
 def job_manager():
-    """The background-callback manager: the job manager of ``pages._background`` when it is
-    there (job limits, sessions, shutdown), else Dash's DiskcacheManager. Either keeps its
-    pickled job data only in ``private_dir("callbacks")`` (0700, checked)."""
+    """The background-callback manager: the job queue of ``pages._background`` (global and
+    per-session limits, identical requests shared, idle jobs reaped, shutdown). Its pickled
+    job data lives only in ``private_dir("callbacks")`` (0700, owner checked)."""
     from dampersim.locations import private_dir
+    from pages import _background
 
-    folder = private_dir("callbacks")
-    import importlib
-
-    try:
-        _background = importlib.import_module("pages._background")
-    except ModuleNotFoundError as exc:
-        if exc.name not in ("pages._background",):
-            raise
-        _background = None
     _JOBS["module"] = _background
-    if _background is not None:
-        return _background.make_manager(folder, max_jobs=_env_int(ENV_OF_FLAG["max_jobs"]),
-                                        per_session=_env_int(ENV_OF_FLAG["jobs_per_session"]))
-    import diskcache
-    from dash import DiskcacheManager
-
-    return DiskcacheManager(diskcache.Cache(str(folder)))
+    return _background.make_manager(private_dir("callbacks"), max_jobs=_env_int(ENV_OF_FLAG["max_jobs"]),
+                                    per_session=_env_int(ENV_OF_FLAG["jobs_per_session"]))
 
 
 def shutdown_jobs() -> None:
@@ -341,8 +328,7 @@ def create_app():
         meta_tags=[{"name": "viewport", "content": "width=device-width, initial-scale=1"}],
     )
     install_protections(app.server)
-    if _JOBS["module"] is not None:
-        _JOBS["module"].install_sessions(app.server)
+    _JOBS["module"].install_sessions(app.server)
     nav = html.Nav(
         [
             dcc.Link([html.Img(src=app.get_asset_url("logo.svg"), className="brand-logo", alt=""),
