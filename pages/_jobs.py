@@ -1,5 +1,13 @@
 """Background work of the dashboard pages: the request / job / show / cancel callbacks of a
-page whose results come from long work, with progress, status lines and time estimates."""
+page whose results come from long work, with progress, status lines and time estimates.
+
+The browser never carries a job's state: the request callback validates it, keeps it on
+the server under an opaque ticket (:mod:`dampersim.views.tickets`) and sends only
+``{"ticket", "work", "nonce"}`` (``work``: the key of the view the job produces, so
+identical requests can be computed once). The job callback loads the state by ticket
+and hands it to the page's ``job``, which validates it again and checks the budget
+before any work. Every error text shown comes from :func:`dampersim.incidents.public_message`.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +17,10 @@ import uuid
 from dash import Input, Output, State, callback, ctx, dcc, html, no_update
 from dash.exceptions import PreventUpdate
 
+from dampersim import costs
+from dampersim.errors import InputError
+from dampersim.incidents import public_message
+from dampersim.views import tickets
 from dampersim.views.notices import notice
 from dampersim.views.store import load_view
 from pages._widgets import render_notices
@@ -80,6 +92,13 @@ def register_background(page: str, *, control_inputs, request, job, show, show_o
         progress(done, total, text) updates the progress bar;
     show(data) -> tuple of values for ``show_outputs`` followed by status and notices.
     """
+    def request_safe(run, initial, values, base_params, autorun):
+        try:
+            return request(run, initial, values, base_params, autorun)
+        except Exception as exc:  # the page keeps working and says what happened, nothing more
+            return {"notices": [notice(f"This request could not be handled: {public_message(exc, page + ' request')}", "error")],
+                    "status": "Not started."}
+
     @callback(
         Output(f"{page}-url", "search"),
         Output("shared-params", "data", allow_duplicate=True),
@@ -96,10 +115,17 @@ def register_background(page: str, *, control_inputs, request, job, show, show_o
     def request_cb(n_clicks, *args):
         values, base_params, autorun = list(args[:-2]), args[-2], args[-1]
         initial, run = trigger_kind(f"{page}-run.n_clicks")
-        out = request(run, initial, values, base_params, autorun)
+        out = request_safe(run, initial, values, base_params, autorun)
         job_data = out.get("job")
         if job_data is not None:
-            job_data = {**job_data, "nonce": uuid.uuid4().hex}
+            try:
+                ticket = tickets.issue(page, job_data["state"], job_data.get("work"))
+                job_data = {"ticket": ticket, "work": job_data.get("work"), "nonce": uuid.uuid4().hex}
+            except Exception as exc:
+                out["notices"] = list(out.get("notices") or []) + [
+                    notice(f"The run cannot be started: {public_message(exc, page + ' ticket')}", "error")]
+                out["status"] = "Not started."
+                job_data = None
         hit = out.get("hit")
         if hit is not None:
             hit = {**hit, "nonce": uuid.uuid4().hex}
@@ -129,8 +155,7 @@ def register_background(page: str, *, control_inputs, request, job, show, show_o
     def job_cb(set_progress, job_data):
         if not job_data:
             raise PreventUpdate
-        out = job(job_data, lambda done, total, text: set_progress((str(done), str(max(total, 1)), text)))
-        return {**out, "nonce": job_data.get("nonce")}
+        return run_ticket(page, job, job_data, lambda done, total, text: set_progress((str(done), str(max(total, 1)), text)))
 
     @callback(
         *show_outputs,
@@ -160,6 +185,43 @@ def register_background(page: str, *, control_inputs, request, job, show, show_o
     return SimpleCallbacks(request_cb, job_cb, show_cb, cancel_cb)
 
 
+#: What the page says when a job's ticket is unknown or expired.
+EXPIRED_TEXT = "this request has expired; press Run"
+
+
+def run_ticket(page: str, job, job_data, progress) -> dict:
+    """The body of a job callback: load the request of ``job_data["ticket"]`` (nothing
+    else of the posted data is used) and run ``job({"state": ...}, progress)``, which
+    validates the state again and checks the budget. Returns {"key"} or {"error"} with
+    the posted nonce (a text, kept only when it is one)."""
+    nonce = job_data.get("nonce") if isinstance(job_data, dict) else None
+    nonce = nonce if isinstance(nonce, str) and len(nonce) <= 64 else None
+    entry = tickets.redeem(job_data.get("ticket") if isinstance(job_data, dict) else None, page)
+    if entry is None:
+        return {"error": EXPIRED_TEXT, "nonce": nonce}
+    try:
+        out = job({"state": entry["state"]}, progress)
+    except Exception as exc:
+        out = {"error": public_message(exc, page + " job")}
+    return {**out, "nonce": nonce}
+
+
+def checked_job_state(page: str, job_data, prepare):
+    """(state, system) of a job's request after validating it again like a link: the state
+    through ``prepare(state) -> (state, system, notices)`` (the page's parser), then the
+    budget on its whole cost (:func:`dampersim.costs.admit`). Raises InputError naming
+    what is refused, before any work."""
+    raw = job_data.get("state") if isinstance(job_data, dict) else None
+    state, system, notices = prepare(raw)
+    if notices:
+        raise InputError("the request is not valid any more (" + "; ".join(n["text"] for n in notices)
+                         + "); press Run to start it again")
+    from dampersim.views.state import state_cost
+
+    costs.admit(state_cost(page, system, state))
+    return state, system
+
+
 class SimpleCallbacks:
     def __init__(self, request, job, show, cancel):
         self.request, self.job, self.show, self.cancel = request, job, show, cancel
@@ -168,14 +230,26 @@ class SimpleCallbacks:
 def show_view(data, render, n_outputs, what="results"):
     """Common part of ``show``: load the view a hit/job refers to and render it; errors
     keep the previous results (no_update) and say what went wrong."""
+    if not isinstance(data, dict):
+        data = {}
     if data.get("error"):
-        msg = f"The run failed: {data['error']}. The previous {what} are kept."
+        err = data["error"]
+        err = err if isinstance(err, str) and len(err) <= 2000 else "unexpected error"
+        msg = f"The run failed: {err}. The previous {what} are kept."
         return (*([no_update] * n_outputs), "Failed (see the message above).", render_notices([notice(msg, "error")]))
-    view = load_view(data.get("key", ""))
+    key = data.get("key")
+    try:
+        view = load_view(key) if isinstance(key, str) and 0 < len(key) <= 128 else None
+        if view is not None:
+            shown = render(view)
+    except Exception as exc:
+        msg = f"The result cannot be shown: {public_message(exc, 'show')}. The previous {what} are kept."
+        return (*([no_update] * n_outputs), "Failed (see the message above).", render_notices([notice(msg, "error")]))
     if view is None:
         msg = "The result is no longer in the cache (it was cleared meanwhile); press Run to compute it again."
         return (*([no_update] * n_outputs), render_notices([notice(msg, "warning")]), [])
-    return (*render(view), data.get("status") or status_line(view, data), [])
+    status = data.get("status") if isinstance(data.get("status"), str) else None
+    return (*shown, status or status_line(view, data), [])
 
 
 def status_line(view, data):
@@ -190,6 +264,24 @@ def status_line(view, data):
         if "points" in s:
             text += f" {s['points']} test points: {s.get('computed', 0)} computed now, {s.get('from_cache', 0)} from the cache."
     return render_notices([notice(text, "success")])
+
+
+def cost_notice(cost, decision: str, button: str) -> dict:
+    """The notice of a request that waits for its Run button: the estimate, and why it
+    did not start by itself."""
+    text = f"Not computed yet: {cost.what}, {cost.text()} (about {costs.duration_text(cost.seconds())} of one core)."
+    if decision == "ask":
+        b = costs.budgets()
+        text += (f" That is above the {costs.duration_text(b.autostart / costs.STEP_DOF_PER_SECOND)} of computing that "
+                 f"start by themselves on this server ({costs.AUTOSTART_ENV}).")
+    text += f" Press {button} to start it."
+    return notice(text, "info")
+
+
+def budget_refusal(exc) -> dict:
+    """The notice of a request above the server's budget (nothing runs)."""
+    return notice(f"Refused: {public_message(exc)}. Use fewer points, a shorter record or a coarser step, or run it "
+                  f"from the command line.", "error")
 
 
 def estimate_seconds(n_missing: int, duration: float, cores: int | None = None) -> float:

@@ -152,6 +152,27 @@ def run_panel(page: str, label: str = "Run"):
     )
 
 
+def run_button(page: str, label: str = "Run"):
+    """A Run button for a page that computes in the foreground, hidden until a state
+    needs it (above the autostart budget, or a link with refused values)."""
+    return html.Div([html.Button(label, id=f"{page}-run", n_clicks=0, className="btn btn-primary")],
+                    id=f"{page}-run-wrap", className="buttons", style={"display": "none"})
+
+
+def triggers(run_prop: str):
+    """(initial, run) of a foreground callback: its first call lists every input as
+    triggered (or runs outside Dash, e.g. called as a plain function); a user action
+    triggers one input, ``run_prop`` when it is the Run button."""
+    from dash import ctx
+
+    try:
+        fired = list(ctx.triggered_prop_ids) if ctx.triggered_prop_ids else []
+    except Exception:  # no callback context: a direct call
+        fired = []
+    initial = len(fired) != 1
+    return initial, (not initial) and fired[0] == run_prop
+
+
 def fmt(v, digits=3, unit=""):
     """Number -> short text for cards and tables ("—" for None/NaN)."""
     if v is None:

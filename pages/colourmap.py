@@ -14,8 +14,9 @@ import time
 import dash
 from dash import Input, Output, dcc, html
 
+from dampersim import costs
 from dampersim.errors import DampersimError
-from dampersim.sweeps.executor import SweepCancelled
+from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
 from dampersim.views.state import (
@@ -23,10 +24,12 @@ from dampersim.views.state import (
     orders_text_from_rows,
     parse_orders_deg,
     parse_query,
+    reparse_state,
+    state_cost,
     state_from_controls,
     to_query,
 )
-from dampersim.views.sweeps import colourmap_points, colourmap_status, colourmap_view, SweepRegistry
+from dampersim.views.sweeps import colourmap_key, colourmap_points, colourmap_status, colourmap_view, SweepRegistry
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "colourmap"
@@ -38,7 +41,9 @@ CUT_OPTIONS = [{"label": f" {k}", "value": str(k)} for k in range(1, 9)]
 
 def layout(**query):
     state, notices = parse_query(PAGE, query)
-    autorun = any(f.key in query for f in PAGES[PAGE])
+    # a link starts its sweep by itself only when every value in it was accepted (and the
+    # request callback checks the autostart budget)
+    autorun = any(f.key in query for f in PAGES[PAGE]) and not notices
     controls = [
         W.section("Speed sweep", [
             W.control("Speeds", W.text("colourmap-speeds", state["speeds"], "900:2800:50"), "rpm",
@@ -105,16 +110,29 @@ def state_from_values(values, base_params):
     return state, system, notices + more
 
 
+def prepare(raw_state):
+    """A stored or posted state validated again like a link -> (state, system, notices)."""
+    state, notices = reparse_state(PAGE, raw_state)
+    system = resolve_system(state["params"], notices)
+    return state, system, notices
+
+
 def request(run, initial, values, base_params, autorun):
-    """Foreground part: validate, mirror into the URL, show a cached view at once, or
-    start the sweep (Run, or opening a shared link)."""
+    """Foreground part: validate, mirror into the URL, show a cached view at once, refuse a
+    sweep above the server's budget, start one within the autostart budget from a link
+    (any size within the limit on Run), else show its estimate and wait for Run."""
     state, system, notices = state_from_values(values, base_params)
     out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
     try:
+        costs.admit(state_cost(PAGE, system, state))  # the whole sweep, before any look-up
         view = colourmap_view(system, state, cache_only=True)
         st = colourmap_status(system, state)
+    except costs.BudgetError as exc:
+        out["notices"] = notices + [J.budget_refusal(exc)]
+        out["status"] = "Not started."
+        return out
     except DampersimError as exc:
-        out["notices"] = notices + [notice(f"This sweep cannot run: {exc}", "error")]
+        out["notices"] = notices + [notice(f"This sweep cannot run: {public_message(exc)}", "error")]
         out["status"] = "Not started."
         return out
     if view is not None:
@@ -122,21 +140,24 @@ def request(run, initial, values, base_params, autorun):
         out["status"] = "Loading from the cache…"
         return out
     missing = st["total"] - st["cached"]
-    if run or (initial and autorun):
-        out["job"] = {"state": state}
+    cost = state_cost(PAGE, system, state, n_points=missing)
+    decision = costs.admit(cost)
+    if run or (initial and autorun and decision == "run" and not notices):  # refused values: wait for Run
+        out["job"] = {"state": state, "work": colourmap_key(system, state)}
         out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
         return out
-    est = J.estimate_seconds(missing, state["duration"])
-    out["status"] = W.render_notices([notice(
-        f"Not computed yet: {st['total']} test points ({st['cached']} already in the cache), about {est:.0f} s. Press Run sweep.", "info")])
+    out["status"] = W.render_notices([J.cost_notice(cost, decision, "Run sweep")])
     return out
 
 
 def job(job_data, progress):
-    """Background part: run the sweep with progress; a cancelled job is killed by Dash (the
-    finished points are in the cache already)."""
-    state = job_data["state"]
-    system = resolve_system(state["params"])
+    """Background part: validate the request again (state and budget), then run the sweep
+    with progress; a cancelled job is killed by Dash (the finished points are in the
+    cache already)."""
+    try:
+        state, system = J.checked_job_state(PAGE, job_data, prepare)
+    except DampersimError as exc:
+        return {"error": public_message(exc)}
     reg = SweepRegistry()
     t0 = time.monotonic()
     try:
@@ -150,12 +171,8 @@ def job(job_data, progress):
 
         view = colourmap_view(system, state, progress=on_progress)
         return {"key": view["key"]}
-    except SweepCancelled as exc:
-        return {"error": str(exc)}
-    except DampersimError as exc:
-        return {"error": str(exc)}
-    except Exception as exc:  # keep the server's page alive with a specific message
-        return {"error": f"unexpected {type(exc).__name__}: {exc}"}
+    except Exception as exc:  # keep the server's page alive with a message that leaks nothing
+        return {"error": public_message(exc, "colourmap job")}
     finally:
         reg.stop()
 

@@ -10,12 +10,14 @@ from __future__ import annotations
 import dash
 from dash import ALL, Input, Output, State, callback, dcc, html, no_update
 
-from dampersim.errors import DampersimError
-from dampersim.views.explorer import explorer_view
+from dampersim import costs
+from dampersim.incidents import public_message
+from dampersim.views.explorer import explorer_key, explorer_view
 from dampersim.views.notices import notice
 from dampersim.views.params import control_params, parameter_value, resolve_system
-from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_from_controls, to_query
-from pages import _frame as F, _widgets as W
+from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_cost, state_from_controls, to_query
+from dampersim.views.store import load_view
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "explorer"
 TITLE = "Explorer"
@@ -42,6 +44,7 @@ def layout(**query):
                                               {-500: "-500", 0: "0", 300: "300", 600: "600", 1000: "1000"}), "N m", cid="explorer-torque"),
             W.control("Simulated time", W.number("explorer-duration", state["duration"]), "s",
                       hint="Analysis window: the last 1.25 s (shorter records: after the 0.6 s start-up).", cid="explorer-duration"),
+            W.run_button(PAGE),
         ]),
         W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
         W.section("Segments per spring", W.param_controls(PAGE, system, SEGMENT_PARAMS)),
@@ -71,7 +74,9 @@ def layout(**query):
             W.card(None, W.graph("explorer-energy", 420), wide=True),
         ], className="cards"),
     ]
-    extra = [dcc.Store(id="explorer-base-params", data=state["params"]), dcc.Store(id="explorer-last-good")]
+    # a link with refused values shows its estimate and waits for Run instead of computing
+    extra = [dcc.Store(id="explorer-base-params", data=state["params"]), dcc.Store(id="explorer-last-good"),
+             dcc.Store(id="explorer-autorun", data=not notices)]
     return F.page_frame(PAGE, "Explorer", "One test point on the rig: time traces, spectra, magnification per order, "
                         "windup against the hardstops and the energy balance. Sliders update on release.",
                         controls, content, notices, extra)
@@ -103,12 +108,16 @@ def _orders_table(rows):
                    data, cid="explorer-mr-table", highlight=lambda r: r["excited"])
 
 
-def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params):
+def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
+                     run=False, initial=False, autorun=True):
     """Everything the Explorer shows for the current controls (plain function, testable).
 
-    Returns a dict: figures {name: figure}, table, kpis, notices, search, params, error.
-    On a refused state or a failed simulation ``error`` is set and the previous results
-    stay (``figures`` is None).
+    Returns a dict: figures {name: figure}, table, kpis, notices, search, params, error,
+    pending. On a refused state (above the server's budget) or a failed simulation
+    ``error`` is set and the previous results stay (``figures`` is None). A point above
+    the autostart budget, or the first call of a link with refused values
+    (``initial`` and not ``autorun``), computes only on ``run``: ``pending`` is True and a
+    notice gives the estimate.
     """
     notices = []
     orders_text, notes = orders_text_from_rows(ks, amps, phases)
@@ -122,13 +131,26 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration}, params)
     notices += more
     try:
+        if load_view(explorer_key(system, state)) is None:
+            cost = state_cost(PAGE, system, state)
+            decision = costs.admit(cost)  # BudgetError above the server's limit: nothing runs
+            if not run and (decision == "ask" or (initial and not autorun)):
+                notices.append(J.cost_notice(cost, decision, "Run"))
+                return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": to_query(PAGE, state),
+                        "params": state["params"], "error": None, "pending": True, "state": state}
         view = explorer_view(system, state)
-    except DampersimError as exc:
-        notices.append(notice(f"The test point could not be simulated: {exc}. The previous results are kept.", "error"))
+    except costs.BudgetError as exc:
+        notices.append(J.budget_refusal(exc))
         return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
-                "error": str(exc), "state": state}
+                "error": public_message(exc), "state": state, "pending": False}
+    except Exception as exc:
+        msg = public_message(exc, "explorer")
+        notices.append(notice(f"The test point could not be simulated: {msg}. The previous results are kept.", "error"))
+        return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
+                "error": msg, "state": state, "pending": False}
     return {"figures": view["figures"], "table": _orders_table(view["orders"]), "kpis": _kpis(view), "notices": notices,
-            "search": to_query(PAGE, state), "params": state["params"], "error": None, "state": state, "view": view}
+            "search": to_query(PAGE, state), "params": state["params"], "error": None, "state": state, "view": view,
+            "pending": False}
 
 
 @callback(
@@ -140,6 +162,7 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     Output("shared-params", "data", allow_duplicate=True),
     Output("explorer-last-good", "data"),
     Output("explorer-params-link", "href"),
+    Output("explorer-run-wrap", "style"),
     Input("explorer-speed", "value"),
     Input("explorer-torque", "value"),
     *W.order_inputs(PAGE),
@@ -150,17 +173,27 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     State({"type": "explorer-param", "name": ALL}, "id"),
     State("explorer-base-params", "data"),
     State("explorer-last-good", "data"),
+    Input("explorer-run", "n_clicks"),
+    State("explorer-autorun", "data"),
     prevent_initial_call="initial_duplicate",
 )
-def update_explorer(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params, last_good):
-    out = explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params)
+def update_explorer(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params, last_good,
+                    run_clicks=None, autorun=True):
+    initial, run = W.triggers("explorer-run.n_clicks")
+    out = explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
+                           run=run, initial=initial, autorun=autorun is not False)
     notices = W.render_notices(out["notices"])
+    hidden, shown = {"display": "none"}, {"display": "block"}
+    if out.get("pending"):
+        figs = [no_update] * len(FIGURES) if last_good else [W.empty_figure("Not computed yet: press Run")] * len(FIGURES)
+        return (*figs, no_update, no_update, notices, out["search"], out["params"], no_update,
+                page_href("parameters", out["params"]), shown)
     if out["error"]:
         figs = [no_update] * len(FIGURES) if last_good else [W.empty_figure("No result: see the message above")] * len(FIGURES)
-        return (*figs, no_update, no_update, notices, no_update, no_update, no_update, no_update)
+        return (*figs, no_update, no_update, notices, no_update, no_update, no_update, no_update, hidden)
     figs = [out["figures"][f] for f in FIGURES]
     return (*figs, out["table"], out["kpis"], notices, out["search"], out["params"], out["view"]["key"],
-            page_href("parameters", out["params"]))
+            page_href("parameters", out["params"]), hidden)
 
 
 # The home page "/" is the Explorer too (same layout, same query keys).

@@ -14,11 +14,14 @@ import time
 import dash
 from dash import Input, Output, dcc, html
 
+from dampersim import costs
 from dampersim.errors import DampersimError
-from dampersim.views.hysteresis import PROTOCOL_NAMES, hysteresis_view, protocol_label, simulated_seconds
+from dampersim.incidents import public_message
+from dampersim.views.hysteresis import PROTOCOL_NAMES, hysteresis_key, hysteresis_view, protocol_label, simulated_seconds
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
-from dampersim.views.state import MAX_LOOP_SPEEDS, PAGES, parse_query, state_from_controls, to_query
+from dampersim.views.state import (MAX_LOOP_SPEEDS, PAGES, parse_query, reparse_state, state_cost, state_from_controls,
+                                   to_query)
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "hysteresis"
@@ -28,7 +31,8 @@ dash.register_page(__name__, path="/hysteresis", name="Hysteresis", title="Hyste
 
 def layout(**query):
     state, notices = parse_query(PAGE, query)
-    autorun = any(f.key in query for f in PAGES[PAGE])
+    # only a link whose every value was accepted starts by itself (within the autostart budget)
+    autorun = any(f.key in query for f in PAGES[PAGE]) and not notices
     controls = [
         W.section("Protocol ([thesis] Table 3.1)", [
             W.control("Ramp protocol", dcc.Dropdown(id="hysteresis-protocol", options=[{"label": protocol_label(p), "value": p} for p in PROTOCOL_NAMES],
@@ -82,13 +86,28 @@ def state_from_values(values, base_params):
     return state, system, notices
 
 
+def prepare(raw_state):
+    """A stored or posted state validated again like a link -> (state, system, notices)."""
+    state, notices = reparse_state(PAGE, raw_state)
+    system = resolve_system(state["params"], notices)
+    return state, system, notices
+
+
 def request(run, initial, values, base_params, autorun):
+    """Foreground part: validate, cache hit, budget refusal, autostart within the
+    autostart budget, else the estimate and the Run button."""
     state, system, notices = state_from_values(values, base_params)
     out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
     try:
+        cost = state_cost(PAGE, system, state)
+        decision = costs.admit(cost)
         view = hysteresis_view(system, state, cache_only=True)
+    except costs.BudgetError as exc:
+        out["notices"] = notices + [J.budget_refusal(exc)]
+        out["status"] = "Not started."
+        return out
     except DampersimError as exc:
-        out["notices"] = notices + [notice(f"These loops cannot run: {exc}", "error")]
+        out["notices"] = notices + [notice(f"These loops cannot run: {public_message(exc)}", "error")]
         out["status"] = "Not started."
         return out
     if view is not None:
@@ -97,19 +116,20 @@ def request(run, initial, values, base_params, autorun):
         return out
     n = len(state["speeds"].split(","))
     sim = simulated_seconds(state)
-    if run or (initial and autorun):
-        out["job"] = {"state": state}
+    if run or (initial and autorun and decision == "run" and not notices):  # refused values: wait for Run
+        out["job"] = {"state": state, "work": hysteresis_key(system, state)}
         out["status"] = f"Starting: {n} speed{'s' if n > 1 else ''}, {sim:.0f} s simulated each…"
         return out
-    est = n * J.estimate_seconds(1, sim)
-    out["status"] = W.render_notices([notice(
-        f"Not computed yet: {n} loop{'s' if n > 1 else ''} of {sim:.0f} s simulated time each, about {est:.0f} s. Press Run ramps.", "info")])
+    out["status"] = W.render_notices([J.cost_notice(cost, decision, "Run ramps")])
     return out
 
 
 def job(job_data, progress):
-    state = job_data["state"]
-    system = resolve_system(state["params"])
+    """Background part: validate the request again (state and budget), then run the ramps."""
+    try:
+        state, system = J.checked_job_state(PAGE, job_data, prepare)
+    except DampersimError as exc:
+        return {"error": public_message(exc)}
     t0 = time.monotonic()
     n = len(state["speeds"].split(","))
     sim = simulated_seconds(state)
@@ -127,10 +147,8 @@ def job(job_data, progress):
         on_progress(0, n, 0)
         view = hysteresis_view(system, state, progress=on_progress)
         return {"key": view["key"]}
-    except DampersimError as exc:
-        return {"error": str(exc)}
     except Exception as exc:
-        return {"error": f"unexpected {type(exc).__name__}: {exc}"}
+        return {"error": public_message(exc, "hysteresis job")}
 
 
 def render(view):

@@ -14,11 +14,14 @@ import time
 import dash
 from dash import Input, Output, dcc, html
 
+from dampersim import costs
 from dampersim.errors import DampersimError
+from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
-from dampersim.views.state import PAGES, orders_text_from_rows, parse_query, state_from_controls, to_query
-from dampersim.views.sweeps import maps_points, maps_status, maps_view, SweepRegistry
+from dampersim.views.state import (PAGES, orders_text_from_rows, parse_query, reparse_state, state_cost, state_from_controls,
+                                   to_query)
+from dampersim.views.sweeps import maps_key, maps_points, maps_status, maps_view, SweepRegistry
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "maps"
@@ -30,7 +33,8 @@ ORDER_OPTIONS = [{"label": f" {k}", "value": str(k)} for k in range(1, 9)]
 
 def layout(**query):
     state, notices = parse_query(PAGE, query)
-    autorun = any(f.key in query for f in PAGES[PAGE])
+    # only a link whose every value was accepted starts by itself (within the autostart budget)
+    autorun = any(f.key in query for f in PAGES[PAGE]) and not notices
     controls = [
         W.section("Test points", [
             W.control("Speeds", W.text("maps-speeds", state["speeds"], "1000:2800:200"), "rpm", cid="maps-speeds",
@@ -96,33 +100,50 @@ def state_from_values(values, base_params):
     return state, system, notices + more
 
 
+def prepare(raw_state):
+    """A stored or posted state validated again like a link -> (state, system, notices)."""
+    state, notices = reparse_state(PAGE, raw_state)
+    system = resolve_system(state["params"], notices)
+    return state, system, notices
+
+
 def request(run, initial, values, base_params, autorun):
+    """Foreground part, as the Colourmap page's: validate, cache hit, budget refusal,
+    autostart within the autostart budget, else the estimate and the Run button."""
     state, system, notices = state_from_values(values, base_params)
     out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
     try:
+        costs.admit(state_cost(PAGE, system, state))
         view = maps_view(system, state, cache_only=True)
         st = maps_status(system, state)
+    except costs.BudgetError as exc:
+        out["notices"] = notices + [J.budget_refusal(exc)]
+        out["status"] = "Not started."
+        return out
     except DampersimError as exc:
-        out["notices"] = notices + [notice(f"This map cannot be built: {exc}", "error")]
+        out["notices"] = notices + [notice(f"This map cannot be built: {public_message(exc)}", "error")]
         out["status"] = "Not started."
         return out
     if view is not None:
         out["hit"] = {"key": view["key"], "from": "cache"}
         out["status"] = "Loading from the cache…"
         return out
-    if run or (initial and autorun):
-        out["job"] = {"state": state}
+    cost = state_cost(PAGE, system, state, n_points=st["total"] - st["cached"])
+    decision = costs.admit(cost)
+    if run or (initial and autorun and decision == "run" and not notices):  # refused values: wait for Run
+        out["job"] = {"state": state, "work": maps_key(system, state)}
         out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
         return out
-    est = J.estimate_seconds(st["total"] - st["cached"], state["duration"])
-    out["status"] = W.render_notices([notice(
-        f"Not computed yet: {st['total']} test points ({st['cached']} already in the cache), about {est:.0f} s. Press Run map.", "info")])
+    out["status"] = W.render_notices([J.cost_notice(cost, decision, "Run map")])
     return out
 
 
 def job(job_data, progress):
-    state = job_data["state"]
-    system = resolve_system(state["params"])
+    """Background part: validate the request again (state and budget), then run the map."""
+    try:
+        state, system = J.checked_job_state(PAGE, job_data, prepare)
+    except DampersimError as exc:
+        return {"error": public_message(exc)}
     reg = SweepRegistry()
     t0 = time.monotonic()
     try:
@@ -136,10 +157,8 @@ def job(job_data, progress):
 
         view = maps_view(system, state, progress=on_progress)
         return {"key": view["key"]}
-    except DampersimError as exc:
-        return {"error": str(exc)}
     except Exception as exc:
-        return {"error": f"unexpected {type(exc).__name__}: {exc}"}
+        return {"error": public_message(exc, "maps job")}
     finally:
         reg.stop()
 

@@ -11,12 +11,14 @@ from __future__ import annotations
 import dash
 from dash import Input, Output, State, callback, dcc, html, no_update
 
-from dampersim.errors import DampersimError
+from dampersim import costs
+from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
-from dampersim.views.segments import segments_view
-from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_from_controls, to_query
-from pages import _frame as F, _widgets as W
+from dampersim.views.segments import segments_key, segments_view
+from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_cost, state_from_controls, to_query
+from dampersim.views.store import load_view
+from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "segments"
 
@@ -35,6 +37,7 @@ def layout(**query):
             W.control("Mean torque", W.slider("segments-torque", state["torque"], -500, 1000, 5,
                                               {-500: "-500", 0: "0", 300: "300", 600: "600", 1000: "1000"}), "N m", cid="segments-torque"),
             W.control("Simulated time", W.number("segments-duration", state["duration"]), "s", cid="segments-duration"),
+            W.run_button(PAGE),
         ]),
         W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
         W.section("Display", [
@@ -59,6 +62,8 @@ def layout(**query):
         ], className="cards"),
         dcc.Store(id="segments-base-params", data=state["params"]),
         dcc.Store(id="segments-last-good"),
+        # a link with refused values shows its estimate and waits for Run instead of computing
+        dcc.Store(id="segments-autorun", data=not notices),
     ]
     return F.page_frame(PAGE, "Segment motion", "Compression of every segment over time, and the damper drawn from the simulated "
                         "node positions: the springs' end segments move first, the middle ones late.", controls, content, notices)
@@ -67,19 +72,34 @@ def layout(**query):
 F.register_link_callbacks(PAGE)
 
 
-def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params):
-    """State, view and notices for the current controls (plain function, testable)."""
+def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params,
+                     run=False, initial=False, autorun=True):
+    """State, view and notices for the current controls (plain function, testable).
+
+    As the Explorer's: above the server's budget ``error`` is set and nothing runs; above
+    the autostart budget (or on the first call of a link with refused values) ``pending``
+    is True, a notice gives the estimate and the point computes only on ``run``."""
     orders_text, notices = orders_text_from_rows(ks, amps, phases)
     state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
                                              "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
     notices += more
     system = resolve_system(state["params"], notices)
     try:
+        if load_view(segments_key(system, state)) is None:
+            cost = state_cost(PAGE, system, state)
+            decision = costs.admit(cost)
+            if not run and (decision == "ask" or (initial and not autorun)):
+                notices.append(J.cost_notice(cost, decision, "Run"))
+                return {"view": None, "state": state, "notices": notices, "error": None, "pending": True}
         view = segments_view(system, state)
-    except DampersimError as exc:
-        notices.append(notice(f"The test point could not be simulated: {exc}. The previous results are kept.", "error"))
-        return {"view": None, "state": state, "notices": notices, "error": str(exc)}
-    return {"view": view, "state": state, "notices": notices, "error": None}
+    except costs.BudgetError as exc:
+        notices.append(J.budget_refusal(exc))
+        return {"view": None, "state": state, "notices": notices, "error": public_message(exc), "pending": False}
+    except Exception as exc:
+        msg = public_message(exc, "segments")
+        notices.append(notice(f"The test point could not be simulated: {msg}. The previous results are kept.", "error"))
+        return {"view": None, "state": state, "notices": notices, "error": msg, "pending": False}
+    return {"view": view, "state": state, "notices": notices, "error": None, "pending": False}
 
 
 def _table(rows):
@@ -98,6 +118,7 @@ def _table(rows):
     Output("segments-url", "search"),
     Output("shared-params", "data", allow_duplicate=True),
     Output("segments-last-good", "data"),
+    Output("segments-run-wrap", "style"),
     Input("segments-speed", "value"),
     Input("segments-torque", "value"),
     *W.order_inputs(PAGE),
@@ -108,14 +129,24 @@ def _table(rows):
     Input("segments-gain", "value"),
     State("segments-base-params", "data"),
     State("segments-last-good", "data"),
+    Input("segments-run", "n_clicks"),
+    State("segments-autorun", "data"),
     prevent_initial_call="initial_duplicate",
 )
-def update_segments(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params, last_good):
-    out = segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params)
+def update_segments(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params, last_good,
+                    run_clicks=None, autorun=True):
+    initial, run = W.triggers("segments-run.n_clicks")
+    out = segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params,
+                           run=run, initial=initial, autorun=autorun is not False)
     notices = W.render_notices(out["notices"])
+    hidden, shown = {"display": "none"}, {"display": "block"}
+    if out.get("pending"):
+        figs = [no_update, no_update] if last_good else [W.empty_figure("Not computed yet: press Run")] * 2
+        state = out["state"]
+        return (*figs, no_update, no_update, notices, to_query(PAGE, state), state["params"], no_update, shown)
     if out["error"]:
         figs = [no_update, no_update] if last_good else [W.empty_figure("No result: see the message above")] * 2
-        return (*figs, no_update, no_update, notices, no_update, no_update, no_update)
+        return (*figs, no_update, no_update, notices, no_update, no_update, no_update, hidden)
     view = out["view"]
     s = view["summary"]
     kpis = W.summary_cards([
@@ -126,4 +157,4 @@ def update_segments(speed, torque, ks, amps, phases, duration, spring, window, s
     ])
     state = out["state"]
     return (view["figures"]["animation"], view["figures"]["heatmap"], _table(view["segments"]), kpis, notices,
-            to_query(PAGE, state), state["params"], view["key"])
+            to_query(PAGE, state), state["params"], view["key"], hidden)

@@ -124,52 +124,95 @@ def _number(part, item, option, unit):
         value = float(part)
     except (TypeError, ValueError):
         raise InputError(
-            f"{option} {item!r}: {part!r} is not a number in {unit}; accepted is {_RANGE_FORM}"
+            f"{option} {_shown(item)}: {_shown(part)} is not a number in {unit}; accepted is {_RANGE_FORM}"
         ) from None
     if not math.isfinite(value):
-        raise InputError(f"{option} {item!r}: accepted are finite numbers in {unit}")
+        raise InputError(f"{option} {_shown(item)}: accepted are finite numbers in {unit}")
     return value
 
 
-def parse_values(text, option="--torque", unit="N m") -> tuple:
+def _range_parts(item, option, unit):
+    """(start, stop, step) of a "START:STOP:STEP" item, or None for a single value."""
+    parts = item.split(":")
+    if len(parts) == 1:
+        return None
+    if len(parts) != 3:
+        raise InputError(
+            f"{option} {_shown(item)} is malformed ({len(parts)} fields separated by ':'); "
+            f"accepted is {_RANGE_FORM}"
+        )
+    start, stop, step = (_number(p.strip(), item, option, unit) for p in parts)
+    if step <= 0:
+        raise InputError(f"{option} {_shown(item)}: the step must be > 0 {unit}")
+    if stop < start:
+        raise InputError(f"{option} {_shown(item)}: STOP ({stop:g}) is below START ({start:g}); accepted is START <= STOP")
+    return start, stop, step
+
+
+def _range_count(start, stop, step) -> float:
+    """Values of an inclusive range, from its numbers alone (inf when too many to count)."""
+    q = (stop - start) / step
+    if not math.isfinite(q) or q > 1e15:
+        return math.inf
+    return float(math.floor(q + 1e-9) + 1)
+
+
+def _shown(item) -> str:
+    """An item for a message: its repr, shortened when long."""
+    text = str(item)
+    return repr(text) if len(text) <= 60 else repr(text[:57]) + f"… ({len(text)} characters)"
+
+
+def count_values(text, option="--torque", unit="N m") -> float:
+    """How many values ``text`` (see :func:`parse_values`) expands to, computed from each
+    item's START, STOP and STEP without building any array (inf when uncountable).
+    Raises InputError for malformed text, as :func:`parse_values`."""
+    if text is None or not str(text).strip():
+        raise InputError(f"{option}: no value given; accepted is {_RANGE_FORM}")
+    total = 0.0
+    for item in str(text).split(","):
+        item = item.strip()
+        if not item:
+            raise InputError(f"{option} {_shown(text)}: empty list item; accepted is {_RANGE_FORM}")
+        parts = _range_parts(item, option, unit)
+        if parts is None:
+            _number(item, item, option, unit)
+            total += 1
+        else:
+            total += _range_count(*parts)
+    return total
+
+
+def parse_values(text, option="--torque", unit="N m", limit=MAX_RANGE_VALUES) -> tuple:
     """Expand a value, a list or an inclusive range into a tuple of floats (unit unchanged).
 
     Accepted: ``"200"``, ``"100,200,300"`` and ``"START:STOP:STEP"`` (STOP included when
     it lies on the step grid, within 1e-9 of a step); list items may themselves be ranges.
     Values are computed as ``START + i * STEP`` (no accumulated rounding). ``option`` and
-    ``unit`` only phrase the error messages.
+    ``unit`` only phrase the error messages. The count of every item is computed from its
+    numbers first (:func:`count_values`): a text whose items add up to more than ``limit``
+    values is refused before any value is built.
 
     Raises:
         InputError: empty or malformed text, non-finite numbers, STEP <= 0, STOP < START,
-            or more than 100 000 values.
+            or more than ``limit`` values in all (default 100 000).
     """
-    if text is None or not str(text).strip():
-        raise InputError(f"{option}: no value given; accepted is {_RANGE_FORM}")
+    count = count_values(text, option, unit)
+    if count > limit:
+        shown = "more than 1e15" if not math.isfinite(count) else f"{count:.0f}"
+        raise InputError(
+            f"{option} {_shown(text)} expands to {shown} values; at most {limit} are accepted "
+            "(check the step)"
+        )
     values: list[float] = []
     for item in str(text).split(","):
         item = item.strip()
-        if not item:
-            raise InputError(f"{option} {text!r}: empty list item; accepted is {_RANGE_FORM}")
-        parts = item.split(":")
-        if len(parts) == 1:
-            values.append(_number(parts[0], item, option, unit))
+        parts = _range_parts(item, option, unit)
+        if parts is None:
+            values.append(_number(item, item, option, unit))
             continue
-        if len(parts) != 3:
-            raise InputError(
-                f"{option} {item!r} is malformed ({len(parts)} fields separated by ':'); "
-                f"accepted is {_RANGE_FORM}"
-            )
-        start, stop, step = (_number(p.strip(), item, option, unit) for p in parts)
-        if step <= 0:
-            raise InputError(f"{option} {item!r}: the step must be > 0 {unit}")
-        if stop < start:
-            raise InputError(f"{option} {item!r}: STOP ({stop:g}) is below START ({start:g}); accepted is START <= STOP")
-        count = int(math.floor((stop - start) / step + 1e-9)) + 1
-        if count > MAX_RANGE_VALUES:
-            raise InputError(
-                f"{option} {item!r} expands to {count} values; at most {MAX_RANGE_VALUES} are accepted "
-                "(check the step)"
-            )
+        start, stop, step = parts
+        count = int(_range_count(start, stop, step))
         # round away the binary noise of start + i * step (e.g. 0.1 steps), keeping ~15 digits
         grid = start + step * np.arange(count)
         scale = max(abs(start), abs(stop), step)
@@ -245,6 +288,7 @@ def speed_sweep(rpm_range="900:2800:10", mean_torque=200.0, orders="2:300") -> t
 
 __all__ = [
     "TestPoint",
+    "count_values",
     "parse_values",
     "parse_range",
     "parse_torques",

@@ -51,6 +51,11 @@ def _explorer_key(system, state, **_):
     return view_key("explorer", system, state, module=__name__)
 
 
+def explorer_key(system, state) -> str:
+    """The view-cache key of the Explorer view of ``state`` with ``system``."""
+    return _explorer_key(system, state)
+
+
 @cached_view(_explorer_key)
 def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
     """One test point: traces, spectra with order markers, MR per order, windup per set
@@ -101,4 +106,4 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
     return {"kind": "explorer", "figures": figures, "orders": rows, "summary": summary}
 
 
-__all__ = ["TRACE_POINTS", "ENERGY_POINTS", "analysis_seconds", "explorer_view"]
+__all__ = ["TRACE_POINTS", "ENERGY_POINTS", "analysis_seconds", "explorer_key", "explorer_view"]

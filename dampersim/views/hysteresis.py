@@ -65,6 +65,11 @@ def _hysteresis_key(system, state, **_):
     return view_key("hysteresis", system, state, module=__name__)
 
 
+def hysteresis_key(system, state) -> str:
+    """The view-cache key of the Hysteresis view of ``state`` with ``system``."""
+    return _hysteresis_key(system, state)
+
+
 @cached_view(_hysteresis_key)
 def hysteresis_view(system, state: dict, progress=None, cancel=None, cache_only: bool = False):
     """Torque-ramp protocol at each speed -> hysteresis loops, dynamic stiffness along the
@@ -129,4 +134,4 @@ def hysteresis_view(system, state: dict, progress=None, cancel=None, cache_only:
     return {"kind": "hysteresis", "figures": figures, "loops": rows, "summary": summary}
 
 
-__all__ = ["ANGLE_UNIT", "PROTOCOL_NAMES", "protocol_label", "simulated_seconds", "hysteresis_view"]
+__all__ = ["ANGLE_UNIT", "PROTOCOL_NAMES", "protocol_label", "simulated_seconds", "hysteresis_key", "hysteresis_view"]

@@ -14,6 +14,7 @@ the parameter, the value, what is accepted and the value used instead.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -71,10 +72,21 @@ PARAMETER_RANGES = {
     "friction.outer.alpha": (0.0, 2.0),
     "friction.pair_outer.alpha": (0.0, 2.0),
     "friction.pair_inner.alpha": (0.0, 2.0),
-    "solver.outer_segments": (4, 200),
-    "solver.inner_segments": (4, 200),
-    "solver.duration": (0.5, 60.0),
+    # every solver setting a link can reach has a range: together with the cost budget
+    # (dampersim.costs) they keep one link from asking for hours of computing or
+    # gigabytes of arrays. Time step [s]: the default 1/60 000 s sits in the middle; a
+    # finer step than 1e-7 s is a numerical study, not a dashboard view.
+    "solver.time_step": (1e-7, 1e-4),
+    # sample rates [Hz]: the pages analyse up to 1 kHz (2 kHz is the least that holds it);
+    # the segment record feeds the 1 kHz animation and heatmap
+    "solver.output_sample_rate": (2000.0, 50000.0),
+    "solver.segment_sample_rate": (10.0, 10000.0),
+    "solver.outer_segments": (4, 64),
+    "solver.inner_segments": (4, 64),
+    "solver.duration": (0.5, 20.0),
 }
+#: Most parameter sets (with their overrides) kept validated in this process.
+RESOLVED_CACHE_SIZE = 64
 
 #: Labels and display units of the Explorer's parameter controls: dotted name ->
 #: (label, display unit, factor from SI to display).
@@ -97,13 +109,64 @@ KEY_PARAMETERS = {
 }
 
 def base_system(set_id=None):
-    """The base parameter set: the default set, or a stored set ``set_id``."""
+    """The base parameter set: the default set, or a stored set ``set_id``.
+
+    A stored set is validated once per process and text (validation includes an
+    eigen-solve, and every page load naming the set would repeat it): see
+    :data:`RESOLVED_CACHE_SIZE`."""
     if set_id is None:
         return default_parameters()
     text = load_parameter_set(set_id)
     if text is None:
         raise InputError(f"parameter set {set_id!r} is not stored on this server")
+    return _system_from_text(text)
+
+
+@functools.lru_cache(maxsize=RESOLVED_CACHE_SIZE)
+def _system_from_text(text: str):
     return loads_toml(text)
+
+
+def _frozen_items(overrides: dict):
+    """Overrides as a hashable key, or None when a value is not a plain number/text/bool."""
+    items = []
+    for k, v in overrides.items():
+        if not isinstance(k, str) or not isinstance(v, (str, int, float, bool)) or v is None:
+            return None
+        items.append((k, type(v).__name__, v))
+    return tuple(items)
+
+
+@functools.lru_cache(maxsize=RESOLVED_CACHE_SIZE)
+def _resolved(base, items: tuple, source: str):
+    """(system, accepted overrides, notices) of ``items`` on ``base``, remembered: the
+    same set and overrides are validated once per process."""
+    notices: list = []
+    system, accepted = apply_overrides(base, {k: v for k, _, v in items}, notices, source)
+    return system, accepted, tuple(n["text"] for n in notices), tuple(n["level"] for n in notices)
+
+
+def resolve_overrides(base, overrides: dict, notices: list | None = None, source: str = "link"):
+    """:func:`apply_overrides` through the in-process cache of validated sets (same
+    result and notices). A value that is not a plain number, text or boolean (possible
+    only in data posted by a browser, never in a link) is refused with a notice."""
+    items = _frozen_items(overrides)
+    if items is None:
+        plain = {}
+        for k, v in overrides.items():
+            if isinstance(k, str) and isinstance(v, (str, int, float, bool)):
+                plain[k] = v
+            elif notices is not None:
+                notices.append(notice(f"Parameter {str(k)[:60]!r} = {type(v).__name__} from the {source} is not "
+                                      f"accepted: accepted is a number, text or true/false. Using the set's value."))
+        items = _frozen_items(plain)
+    try:
+        system, accepted, texts, levels = _resolved(base, items, source)
+    except TypeError:  # an unhashable value inside the set: validate without the cache
+        return apply_overrides(base, overrides, notices, source)
+    if notices is not None:
+        notices.extend(notice(t, lv) for t, lv in zip(texts, levels))
+    return system, dict(accepted)
 
 
 def _override_value(system, name):
@@ -171,21 +234,24 @@ def parse_parameters(query: dict, notices: list | None = None) -> dict:
     for k in query:
         if "." in k:
             raw_overrides[k] = query_value(query, k, notices, f"Parameter {k}")
-    _, accepted = apply_overrides(base, raw_overrides, notices)
+    _, accepted = resolve_overrides(base, raw_overrides, notices)
     return {"set": set_id, "overrides": accepted}
 
 
 def resolve_system(params: dict | None, notices: list | None = None):
     """The :class:`DamperSystem` of a parameter state (see :func:`parse_parameters`)."""
-    params = params or {}
+    params = params if isinstance(params, dict) else {}
     set_id = params.get("set")
     try:
+        if set_id is not None and not valid_set_id(set_id):
+            raise InputError(f"parameter set {str(set_id)[:40]!r} is not a valid set id (16 hex digits)")
         base = base_system(set_id)
     except DampersimError as exc:
         if notices is not None:
             notices.append(notice(f"{exc}; using the default set."))
         base = default_parameters()
-    system, _ = apply_overrides(base, dict(params.get("overrides") or {}), notices)
+    overrides = params.get("overrides")
+    system, _ = resolve_overrides(base, dict(overrides) if isinstance(overrides, dict) else {}, notices)
     return system
 
 
@@ -360,6 +426,8 @@ __all__ = [
     "apply_overrides",
     "parse_parameters",
     "resolve_system",
+    "resolve_overrides",
+    "RESOLVED_CACHE_SIZE",
     "parameter_query_items",
     "parameters_view",
     "params_for_system",

@@ -25,6 +25,11 @@ def _segments_key(system, state, **_):
     return view_key("segments", system, state, module=__name__)
 
 
+def segments_key(system, state) -> str:
+    """The view-cache key of the Segments view of ``state`` with ``system``."""
+    return _segments_key(system, state)
+
+
 @cached_view(_segments_key)
 def segments_view(system, state: dict, use_cache: bool = True) -> dict:
     """Segment motion of one test point: compression of each segment over time (heatmap)
@@ -62,4 +67,4 @@ def segments_view(system, state: dict, use_cache: bool = True) -> dict:
             "summary": summary}
 
 
-__all__ = ["SIMULATION_KEYS", "segments_view"]
+__all__ = ["SIMULATION_KEYS", "segments_key", "segments_view"]

@@ -18,10 +18,11 @@ import re
 from dataclasses import dataclass
 from urllib.parse import quote
 
+from dampersim import costs
 from dampersim.errors import InputError
-from dampersim.excitation import PROTOCOLS, OrderSum, parse_orders
+from dampersim.excitation import PROTOCOLS, OrderSum, parse_orders, ramp_protocol
 from dampersim.units import number_text
-from dampersim.sweeps.grid import parse_values
+from dampersim.sweeps.grid import count_values, parse_values
 from dampersim.units import deg_to_rad, rpm_to_rad_s
 from dampersim.units import parse_number
 from dampersim.views.notices import notice, query_value
@@ -36,6 +37,12 @@ MAX_AMPLITUDE_NM = 1000.0
 MAX_SWEEP_POINTS = 400
 #: Most speeds of a hysteresis page.
 MAX_LOOP_SPEEDS = 6
+#: Longest query a page reads [characters, keys and values together]; a longer one is
+#: ignored as a whole (a notice, every value at its default). The longest useful link
+#: (six orders, every field, a dozen parameter overrides) is under 1 kB.
+MAX_QUERY_CHARS = 4096
+#: Longest single query value [characters]; a longer one is refused (notice, default).
+MAX_VALUE_CHARS = 512
 
 
 @dataclass(frozen=True)
@@ -73,7 +80,8 @@ class Field:
             return (f"speeds in rpm ({number_text(self.lo)}-{number_text(self.hi)}) as a value, a list or START:STOP:STEP, "
                     f"e.g. 900:2800:50, at most {self.choices[0] if self.choices else MAX_SWEEP_POINTS} speeds")
         if self.kind == "torques":
-            return f"mean torques in N m ({number_text(self.lo)} to {number_text(self.hi)}) as a value, a list or START:STOP:STEP"
+            return (f"mean torques in N m ({number_text(self.lo)} to {number_text(self.hi)}) as a value, a list or "
+                    f"START:STOP:STEP, at most {MAX_SWEEP_POINTS} torques and {MAX_SWEEP_POINTS} test points with the speeds")
         if self.kind == "order_list":
             return f"engine orders separated by commas, e.g. 2,4 (each from {number_text(self.lo)} to {number_text(self.hi)})"
         return "a value"
@@ -278,12 +286,15 @@ def _parse_value_list(f: Field, raw, unit: str, noun: str, sep: str, limit=None)
     """A value, list or START:STOP:STEP range -> normalised text; every value within the
     field's bounds and at most ``limit`` values."""
     text = re.sub(r"\s+", "", str(raw))
+    limit = MAX_SWEEP_POINTS if limit is None else limit
     try:
-        values = parse_values(text, option=f.key, unit=unit)
+        count = count_values(text, option=f.key, unit=unit)  # counted from the numbers, nothing built
+        if count > limit:
+            shown = "more than 1e15" if not math.isfinite(count) else f"{count:.0f}"
+            raise ValueError(f"expands to {shown} {noun}, at most {limit} are accepted")
+        values = parse_values(text, option=f.key, unit=unit, limit=limit)
     except InputError as exc:
         raise ValueError(str(exc)) from None
-    if limit is not None and len(values) > limit:
-        raise ValueError(f"expands to {len(values)} {noun}, at most {limit} are accepted")
     bad = [v for v in values if not (f.lo <= v <= f.hi)]
     if bad:
         raise ValueError(f"{number_text(bad[0])} {unit} is outside {number_text(f.lo)}{sep}{number_text(f.hi)} {unit}")
@@ -295,7 +306,7 @@ def _parse_speeds(f: Field, raw):
 
 
 def _parse_torques(f: Field, raw):
-    return _parse_value_list(f, raw, "N m", "torques", " to ")
+    return _parse_value_list(f, raw, "N m", "torques", " to ", MAX_SWEEP_POINTS)
 
 
 def _parse_order_list(f: Field, raw):
@@ -350,6 +361,7 @@ def parse_query(page: str, query: dict | None) -> tuple:
     """
     query = dict(query or {})
     notices: list = []
+    query = _capped_query(query, notices)
     params = parse_parameters(query, notices)
     system = resolve_system(params)
     state = {}
@@ -372,6 +384,44 @@ def parse_query(page: str, query: dict | None) -> tuple:
     return state, notices
 
 
+def _text_size(value) -> int:
+    if isinstance(value, (list, tuple)):
+        return sum(_text_size(v) for v in value)
+    return len(value) if isinstance(value, str) else len(str(value)) if isinstance(value, (int, float, bool)) else 64
+
+
+def _short(value, n: int = 40) -> str:
+    text = str(value)
+    return repr(text) if len(text) <= n else repr(text[:n]) + f"… ({len(text)} characters)"
+
+
+def _capped_query(query: dict, notices: list) -> dict:
+    """The query with the length caps applied: above :data:`MAX_QUERY_CHARS` in all it is
+    dropped as a whole; a value above :data:`MAX_VALUE_CHARS` (or of a type no URL gives)
+    is dropped. Each with a notice."""
+    total = sum(len(str(k)) + 1 + _text_size(v) for k, v in query.items())
+    if total > MAX_QUERY_CHARS:
+        notices.append(notice(f"The link's query is {total} characters long: accepted are at most {MAX_QUERY_CHARS}. "
+                              "Nothing in it is used; every value is at its default."))
+        return {}
+    out = {}
+    for k, v in query.items():
+        vals = v if isinstance(v, (list, tuple)) else [v]
+        bad = next((x for x in vals if not isinstance(x, (str, int, float, bool))
+                    or (isinstance(x, int) and not isinstance(x, bool) and abs(x) > 2**53)), "")
+        if bad != "":
+            notices.append(notice(f"{_short(k)} is given as {type(bad).__name__}: accepted is text or a number. "
+                                  "Using the default."))
+            continue
+        long = next((x for x in vals if isinstance(x, str) and len(x) > MAX_VALUE_CHARS), None)
+        if long is not None:
+            notices.append(notice(f"{_short(k)}={_short(long)} is {len(long)} characters long: accepted are at most "
+                                  f"{MAX_VALUE_CHARS}. Using the default."))
+            continue
+        out[k] = v
+    return out
+
+
 def _cross_checks(page, state, notices):
     """Checks between fields; fix the state and add notices."""
     if page in ("colourmap", "maps"):
@@ -384,6 +434,17 @@ def _cross_checks(page, state, notices):
                 f"{number_text(state['duration'])} s record; using {number_text(new)} s."
             ))
             state["window"] = new
+    if page == "maps":
+        n_speeds = count_values(state["speeds"], "speeds", "rpm")
+        n_torques = count_values(state["torques"], "torques", "N m")
+        if n_speeds * n_torques > MAX_SWEEP_POINTS:
+            sp, tq = field("maps", "speeds").default, field("maps", "torques").default
+            notices.append(notice(
+                f"Speeds ({state['speeds']}) x mean torques ({state['torques']}) are {n_speeds:.0f} x {n_torques:.0f} = "
+                f"{n_speeds * n_torques:.0f} test points: accepted are at most {MAX_SWEEP_POINTS}. "
+                f"Using speeds={sp} and torques={tq}."
+            ))
+            state["speeds"], state["torques"] = sp, tq
     if page == "maps" and state["fmin"] >= state["fmax"]:
         f_lo, f_hi = field("maps", "fmin").default, field("maps", "fmax").default
         notices.append(notice(
@@ -423,6 +484,65 @@ def page_href(page: str, params: dict | None = None, state: dict | None = None) 
     return path + "?" + "&".join(f"{quote(k, safe='._-')}={quote(v, safe=':,@._-')}" for k, v in items)
 
 
+def reparse_state(page: str, state) -> tuple:
+    """Validate a page state that comes back from elsewhere (a job's stored request, data a
+    browser posted) exactly as a link: ``(state, notices)`` of :func:`parse_query` over its
+    page fields and parameter state. Anything that is not a page state's shape gives a
+    notice and the defaults; nothing of it is trusted."""
+    notices: list = []
+    if not isinstance(state, dict):
+        notices.append(notice(f"The request holds {type(state).__name__}, not a page state: accepted is a page state. "
+                              "Using the defaults."))
+        state = {}
+    query = {}
+    for f in page_fields(page):
+        v = state.get(f.key)
+        if v is not None:
+            query[f.key] = v
+    params = state.get("params")
+    if params is not None:
+        if not isinstance(params, dict):
+            notices.append(notice("The request's parameter state is not a mapping: accepted is {set, overrides}. "
+                                  "Using the default set."))
+        else:
+            set_id = params.get("set")
+            if set_id is not None:
+                query["set"] = set_id
+            overrides = params.get("overrides") or {}
+            if not isinstance(overrides, dict):
+                notices.append(notice("The request's parameter overrides are not a mapping: accepted is "
+                                      "{name: value}. Using none."))
+                overrides = {}
+            for k, v in overrides.items():
+                if isinstance(k, str) and "." in k:
+                    query[k] = number_text(v) if isinstance(v, (int, float)) else v
+    out, more = parse_query(page, query)
+    return out, notices + more
+
+
+def state_cost(page: str, system, state: dict, n_points: int | None = None):
+    """The :class:`dampersim.costs.Cost` of computing a (validated) page state with
+    ``system``: one point (Explorer; Segments with its segment record), a sweep (Colourmap,
+    Maps: ``n_points`` test points when given, e.g. only those not in the cache), or the
+    hysteresis ramps (one protocol run per speed)."""
+    if page in ("explorer", "segments"):
+        return costs.point_cost(system, float(state["duration"]), record_segments=(page == "segments"))
+    if page in ("colourmap", "maps"):
+        n = count_values(state["speeds"], "speeds", "rpm")
+        if page == "maps":
+            n *= count_values(state["torques"], "torques", "N m")
+        total = int(n)
+        n = total if n_points is None else int(n_points)
+        what = f"{n} test point{'s' if n != 1 else ''} of {number_text(float(state['duration']))} s" + (
+            f" ({total - n} of {total} already in the cache)" if n != total else "")
+        return costs.sweep_cost(system, n, float(state["duration"]), float(state["window"]), what=what)
+    if page == "hysteresis":
+        n = int(count_values(state["speeds"], "speeds", "rpm"))
+        seconds = ramp_protocol(state["protocol"], 100.0, rate=float(state["rate"]), hold=float(state["hold"])).duration
+        return costs.ramp_cost(system, seconds, n, what=f"{n} loop{'s' if n != 1 else ''} of {seconds:.0f} s simulated time")
+    raise InputError(f"page {page!r} has no cost: accepted is explorer, segments, colourmap, maps or hysteresis")
+
+
 def state_from_controls(page: str, values: dict, params: dict | None) -> tuple:
     """Validate control values (numbers or text from the page) -> ``(state, notices)``.
 
@@ -451,6 +571,10 @@ __all__ = [
     "point_excitation",
     "orders_text_from_rows",
     "parse_query",
+    "reparse_state",
+    "state_cost",
+    "MAX_QUERY_CHARS",
+    "MAX_VALUE_CHARS",
     "default_state",
     "to_query",
     "page_href",

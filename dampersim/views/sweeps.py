@@ -165,6 +165,11 @@ def _colourmap_key(system, state, **_):
     return view_key("colourmap", system, state, module=__name__)
 
 
+def colourmap_key(system, state) -> str:
+    """The view-cache key of the Colourmap view of ``state`` with ``system``."""
+    return _colourmap_key(system, state)
+
+
 @cached_view(_colourmap_key)
 def colourmap_view(system, state: dict, progress=None, cancel=None, cache_only: bool = False, workers=None, executor=None):
     """Speed sweep -> FFT colourmaps of input and output with order lines, and order cuts
@@ -212,6 +217,11 @@ def colourmap_view(system, state: dict, progress=None, cancel=None, cache_only: 
 # --------------------------------------------------------------------------- maps
 def _maps_key(system, state, **_):
     return view_key("maps", system, state, module=__name__)
+
+
+def maps_key(system, state) -> str:
+    """The view-cache key of the Maps view of ``state`` with ``system``."""
+    return _maps_key(system, state)
 
 
 @cached_view(_maps_key)
@@ -263,6 +273,8 @@ __all__ = [
     "sweep_status",
     "colourmap_status",
     "maps_status",
+    "colourmap_key",
     "colourmap_view",
+    "maps_key",
     "maps_view",
 ]

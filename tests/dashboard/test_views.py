@@ -93,8 +93,11 @@ def test_parameter_overrides_are_validated_one_by_one():
 
 
 def test_override_that_breaks_the_time_step_bound_names_the_cause():
-    _, notices = views.parse_query("explorer", {"solver.time_step": "0.001"})
+    # 9e-5 s is inside the page's range of time steps (1e-7 to 1e-4 s) but above this set's bound
+    _, notices = views.parse_query("explorer", {"solver.time_step": "9e-5"})
     assert "solver.time_step" in texts(notices) and "stability bound" in texts(notices)
+    _, notices = views.parse_query("explorer", {"solver.time_step": "0.001"})  # outside the page's range
+    assert "from 1e-07 to 0.0001" in texts(notices)
 
 
 def test_unknown_parameter_set_id_falls_back_to_default(cache_dir):

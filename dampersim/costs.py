@@ -1,0 +1,351 @@
+"""Cost of a request, estimated before anything is allocated, and the server's budgets.
+
+Every run of the damper model marches ``steps = duration / solver.time_step`` steps of a
+state of ``DOF`` degrees of freedom, and the kernel's time is close to proportional to
+their product. A request's *work* is therefore counted in step·DOF and its memory in
+bytes [B], both from the parameter set alone (no layout, no array is built):
+
+* DOF (:func:`degrees_of_freedom`), as :func:`dampersim.solver.layout.build_layout` lays
+  them out: the three damper inertias, ``segments - 1`` masses per integrated spring
+  (outer spring; nested pair outer; nested pair inner when the set has one), one DOF per
+  rig element, plus the clutch drive side and the pendulum absorber when those effects
+  are on. The segment record holds ``segments + 1`` nodes per spring.
+* bytes of one run (:func:`point_cost`), as :func:`dampersim.simulation.simulate`
+  allocates them: the input torque on the step grid (8 B per step, the largest array when
+  the step is small), the integrator's record (``NREC`` channels at the output sample
+  rate) and the result's copies of its columns, the segment record (nodes at the segment
+  sample rate) and the state vectors.
+
+Measured rate (``python bench/bench_core.py --quick`` and the same run with 64/64
+segments at 1e-6 s, on the 2-core development machine, friction on): 18.6 ns per
+step·DOF, i.e. 5.3e7 to 5.9e7 step·DOF per second of one core; friction off is about
+twice as fast. :data:`STEP_DOF_PER_SECOND` takes the slower, rounded figure, 5e7, so a
+time estimate errs long. The default budgets follow from it: :data:`DEFAULT_AUTOSTART`
+1.2e9 step·DOF (about 24 s of one core: every default page state, the largest being the
+Maps page's 80 points at 5.0e8, starts by itself) and :data:`DEFAULT_LIMIT` 4.5e10 step·DOF
+(about 15 min of one core). Both are server settings, read from the environment at call
+time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
+step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes (default 1 GiB).
+
+:func:`admit` applies them: above the limit a :class:`BudgetError` (an
+:class:`~dampersim.errors.InputError`) gives the estimate and the limit; above the
+autostart budget the answer is ``"ask"`` (a page shows the estimate and waits for its
+Run button); else ``"run"``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+from dampersim.errors import InputError
+from dampersim.solver.layout import NREC
+
+#: Kernel speed [step·DOF per second of one core], measured as the module docstring says.
+STEP_DOF_PER_SECOND = 5.0e7
+#: Default autostart budget [step·DOF]: about 24 s of one core.
+DEFAULT_AUTOSTART = 1.2e9
+#: Default limit [step·DOF]: about 15 minutes of one core.
+DEFAULT_LIMIT = 4.5e10
+#: Default memory limit of one request [B]: 1 GiB.
+DEFAULT_BYTES_LIMIT = float(2**30)
+#: Environment variables of the budgets (read by :func:`budgets` at call time).
+BUDGET_ENV = "DAMPERSIM_BUDGET"
+AUTOSTART_ENV = "DAMPERSIM_AUTOSTART_BUDGET"
+BYTES_ENV = "DAMPERSIM_MEMORY_BUDGET"
+
+#: Columns a :class:`~dampersim.results.SimulationResult` copies out of the record
+#: (time, torques, speeds, windups, hardstops, motor, set torques, energies).
+RESULT_COLUMNS = 21
+#: Bytes of one float64 value.
+_F8 = 8
+#: Top of the stored spectra of a sweep point [Hz] (:mod:`dampersim.sweeps.cache`) and
+#: the bytes of one bin (float32, input and output).
+_SPECTRUM_TOP_HZ = 1000.0
+_SPECTRUM_BIN_BYTES = 2 * 4
+#: Analysis window of a sweep point [s] when none is given ([thesis] 1.25 s).
+_WINDOW_S = 1.25
+
+
+@dataclass(frozen=True)
+class Cost:
+    """Estimated cost of a request: ``work`` [step·DOF], ``bytes`` [B] (peak memory of the
+    arrays it allocates) and ``what`` (a short description for messages).
+
+    Costs add up (``a + b``): work and bytes both sum, an upper bound for runs made one
+    after the other.
+    """
+
+    work: float
+    bytes: float
+    what: str = "this request"
+
+    def __add__(self, other: "Cost") -> "Cost":
+        if not isinstance(other, Cost):
+            return NotImplemented
+        what = self.what if self.what == other.what else f"{self.what} and {other.what}"
+        return Cost(self.work + other.work, self.bytes + other.bytes, what)
+
+    def seconds(self) -> float:
+        """Rough compute time [s] on one core (:data:`STEP_DOF_PER_SECOND`)."""
+        return self.work / STEP_DOF_PER_SECOND
+
+    def text(self) -> str:
+        """"about 3.1e8 step·DOF and 120 MB"."""
+        return f"about {_work_text(self.work)} step·DOF and {bytes_text(self.bytes)}"
+
+
+def _work_text(work: float) -> str:
+    return f"{work:.1e}".replace("e+0", "e").replace("e+", "e")
+
+
+def bytes_text(n: float) -> str:
+    """Bytes as short text, decimal units: "120 MB", "16 GB", "512 B"."""
+    n = float(n)
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            v = n / size
+            return f"{v:.0f} {unit}" if v >= 10 else f"{v:.1f} {unit}"
+    return f"{n:.0f} B"
+
+
+def duration_text(seconds: float) -> str:
+    """Seconds as "25 s", "4 min", "3.2 h"."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+# --------------------------------------------------------------------------- counting
+def degrees_of_freedom(system) -> int:
+    """Size of the integrated state [-] of ``system`` (see the module docstring); equal to
+    ``build_layout(system, speed).ndof``."""
+    s = system
+    no, ni = int(s.solver.outer_segments), int(s.solver.inner_segments)
+    nested = s.inner.nested is not None
+    dof = 3 + (no - 1) + (ni - 1) + ((ni - 1) if nested else 0) + len(s.rig.elements)
+    dof += int(bool(s.effects.clutch_slip.enabled)) + int(bool(s.effects.pendulum_absorber.enabled))
+    return dof
+
+
+def segment_nodes(system) -> int:
+    """Nodes of the segment record [-]: ``segments + 1`` per integrated spring; equal to
+    ``build_layout(system, speed).n_nodes``."""
+    no, ni = int(system.solver.outer_segments), int(system.solver.inner_segments)
+    return (no + 1) + (ni + 1) + ((ni + 1) if system.inner.nested is not None else 0)
+
+
+def _steps(duration: float, dt: float) -> float:
+    """Steps of a run (a float: a hostile duration may give a count too large to hold)."""
+    duration, dt = float(duration), float(dt)
+    if not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"duration = {duration!r} s: accepted is a positive finite duration")
+    if not (math.isfinite(dt) and dt > 0):
+        raise InputError(f"solver.time_step = {dt!r} s: accepted is a positive finite step")
+    return max(1.0, round(duration / dt))
+
+
+def _samples(steps: float, rate: float, dt: float) -> float:
+    """Samples kept of ``steps`` steps at ``rate`` [Hz], as :func:`simulate` decimates."""
+    every = max(1.0, round(1.0 / (float(rate) * dt)))
+    return math.ceil(steps / every)
+
+
+def run_bytes(system, duration: float, record_segments: bool = True) -> float:
+    """Peak bytes [B] of the arrays one :func:`~dampersim.simulation.simulate` run of
+    ``duration`` [s] allocates (see the module docstring)."""
+    sol = system.solver
+    dt = float(sol.time_step)
+    steps = _steps(duration, dt)
+    nrec = _samples(steps, sol.output_sample_rate, dt)
+    dof = degrees_of_freedom(system)
+    total = steps * _F8  # input torque on the step grid
+    total += nrec * (NREC + RESULT_COLUMNS) * _F8  # record + the result's column copies
+    if record_segments:
+        nseg = _samples(steps, sol.segment_sample_rate, dt)
+        total += nseg * (segment_nodes(system) + 1) * _F8  # node record + its time axis
+    total += 4 * dof * _F8  # q, v and the kernel's scratch vectors
+    return float(total)
+
+
+# --------------------------------------------------------------------------- requests
+def point_cost(system, duration: float, record_segments: bool = True, what: str = "this test point") -> Cost:
+    """One test point of ``duration`` [s]: ``steps x DOF`` and :func:`run_bytes`."""
+    steps = _steps(duration, system.solver.time_step)
+    return Cost(steps * degrees_of_freedom(system), run_bytes(system, duration, record_segments), what)
+
+
+def sweep_cost(system, n_points: int, duration: float, window: float = _WINDOW_S, workers: int | None = None,
+               what: str | None = None) -> Cost:
+    """A sweep of ``n_points`` test points of ``duration`` [s] each (no segment record,
+    as :mod:`dampersim.sweeps` runs them): the points' work; the bytes of ``workers``
+    points in flight (default: the cores) plus every point's stored spectra (input and
+    output, float32, up to 1 kHz at the resolution 1 / ``window`` [s])."""
+    n = max(0, int(n_points))
+    one = point_cost(system, duration, record_segments=False)
+    workers = max(1, int(workers or _cores()))
+    bins = _SPECTRUM_TOP_HZ * float(window) + 1
+    bytes_ = min(n, workers) * one.bytes + n * bins * _SPECTRUM_BIN_BYTES
+    return Cost(n * one.work, float(bytes_), what or f"a sweep of {n} test point{'s' if n != 1 else ''}")
+
+
+def ramp_cost(system, duration: float, n_speeds: int = 1, what: str | None = None) -> Cost:
+    """Hysteresis ramps: ``n_speeds`` runs of ``duration`` [s] each (the protocol's own
+    length: its torque span over the rate plus the holds, see
+    :func:`dampersim.excitation.ramp_protocol`), one after the other; bytes of one run
+    plus the loops kept (six series per speed at the output sample rate)."""
+    n = max(0, int(n_speeds))
+    one = point_cost(system, duration, record_segments=False)
+    steps = _steps(duration, system.solver.time_step)
+    kept = n * 6 * _samples(steps, system.solver.output_sample_rate, float(system.solver.time_step)) * _F8
+    return Cost(n * one.work, one.bytes + kept,
+                what or f"{n} ramp{'s' if n != 1 else ''} of {duration:.0f} s simulated time")
+
+
+# Counts of :func:`dampersim.discrepancy.diagnose.diagnose` (its defaults), kept here because
+# the discrepancy package sits above this module; tests check them against it.
+DIAGNOSIS_FACTORS = 6  # calibrated log scale factors (CALIBRATION)
+DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
+DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
+DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)
+DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
+DIAGNOSIS_FIT_RUNS = 5 + 8 + 3  # magnitude grid + bounded refinement + verification runs
+DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
+
+
+def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
+    """Upper bound of the model runs one diagnosis makes with ``n_points`` torsional points
+    (every third held out) and ``n_candidates`` effects: compare (twice: the model and its
+    coarse discretisation), coarse scan and Gauss-Newton on the training points, the
+    held-out check, a screen per candidate from two starts, the shortlist's fits from
+    both starts with their held-out checks, and three runs per ramp."""
+    n = max(0, int(n_points))
+    held = n // 3 + (1 if n % 3 >= 2 else 0)
+    train = n - held
+    runs = 2 * n
+    runs += DIAGNOSIS_FACTORS * DIAGNOSIS_SCAN * train
+    runs += DIAGNOSIS_ITERATIONS * (DIAGNOSIS_FACTORS + DIAGNOSIS_STEP_TRIALS) * train
+    runs += held
+    runs += DIAGNOSIS_STARTS * int(n_candidates) * train
+    shortlist = min(DIAGNOSIS_SHORTLIST, max(1, int(n_candidates)))
+    runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + held)
+    runs += 3 * max(0, int(n_ramps))
+    return int(runs)
+
+
+def diagnosis_cost(system, n_points: int, duration: float, n_candidates: int, n_ramps: int = 0,
+                   ramp_duration: float = 0.0, workers: int = 2) -> Cost:
+    """A diagnosis (:mod:`dampersim.discrepancy`): :func:`diagnosis_runs` runs of
+    ``duration`` [s] (the longest torsional record) plus three runs per ramp of
+    ``ramp_duration`` [s]; bytes of ``workers`` runs in flight (the diagnosis runner's
+    default is two processes)."""
+    runs = diagnosis_runs(n_points, n_candidates, 0)
+    one = point_cost(system, duration, record_segments=False)
+    work = runs * one.work
+    peak = one.bytes
+    if n_ramps and ramp_duration > 0:
+        ramp = point_cost(system, ramp_duration, record_segments=False)
+        work += 3 * int(n_ramps) * ramp.work
+        peak = max(peak, ramp.bytes)
+    return Cost(float(work), float(max(1, int(workers)) * peak),
+                f"a diagnosis of {int(n_points)} test points ({runs + 3 * max(0, int(n_ramps))} model runs)")
+
+
+def _cores() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+# --------------------------------------------------------------------------- budgets
+@dataclass(frozen=True)
+class Budgets:
+    """The server's budgets: ``limit`` and ``autostart`` [step·DOF], ``bytes_limit`` [B]."""
+
+    limit: float = DEFAULT_LIMIT
+    autostart: float = DEFAULT_AUTOSTART
+    bytes_limit: float = DEFAULT_BYTES_LIMIT
+
+
+def _env_number(name: str, default: float, unit: str, example: str) -> float:
+    raw = os.environ.get(name)
+    if raw is None or not raw.strip():
+        return float(default)
+    try:
+        value = float(raw.strip())
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        shown = raw if len(raw) <= 40 else raw[:40] + "…"
+        raise InputError(f"{name} = {shown!r}: accepted is a positive number of {unit}, e.g. {example}")
+    return value
+
+
+def budgets() -> Budgets:
+    """The budgets from the environment, read now: ``DAMPERSIM_BUDGET`` and
+    ``DAMPERSIM_AUTOSTART_BUDGET`` [step·DOF], ``DAMPERSIM_MEMORY_BUDGET`` [B]; unset
+    ones take the defaults. An autostart budget above the limit is lowered to the limit.
+    Raises InputError naming the variable, its value and what is accepted."""
+    limit = _env_number(BUDGET_ENV, DEFAULT_LIMIT, "step·DOF", f"{DEFAULT_LIMIT:.1e} (about 15 min of one core)")
+    auto = _env_number(AUTOSTART_ENV, DEFAULT_AUTOSTART, "step·DOF", f"{DEFAULT_AUTOSTART:.1e} (about 24 s of one core)")
+    mem = _env_number(BYTES_ENV, DEFAULT_BYTES_LIMIT, "bytes", f"{int(DEFAULT_BYTES_LIMIT)} (1 GiB)")
+    return Budgets(limit=limit, autostart=min(auto, limit), bytes_limit=mem)
+
+
+class BudgetError(InputError):
+    """A request above the server's budget; the message gives the estimate and the limit."""
+
+    def __init__(self, cost: Cost, budget: Budgets):
+        self.cost = cost
+        self.budget = budget
+        over_work = cost.work > budget.limit
+        over = []
+        if over_work:
+            over.append(f"{_work_text(budget.limit)} step·DOF (about {duration_text(budget.limit / STEP_DOF_PER_SECOND)} "
+                        f"of one core, {BUDGET_ENV})")
+        if cost.bytes > budget.bytes_limit:
+            over.append(f"{bytes_text(budget.bytes_limit)} of memory ({BYTES_ENV})")
+        super().__init__(f"{cost.what} is {cost.text()} (about {duration_text(cost.seconds())} of one core); "
+                         f"this server accepts at most {' and '.join(over)}")
+
+    def __reduce__(self):
+        return (type(self), (self.cost, self.budget))
+
+
+def admit(cost: Cost, budget: Budgets | None = None) -> str:
+    """``"run"`` when ``cost`` is within the autostart budget, ``"ask"`` when it is within
+    the limit but above the autostart budget (start only on an explicit Run). Raises
+    :class:`BudgetError` above the work limit or the memory limit."""
+    budget = budget if budget is not None else budgets()
+    if not (cost.work <= budget.limit and cost.bytes <= budget.bytes_limit):  # NaN is refused too
+        raise BudgetError(cost, budget)
+    return "ask" if cost.work > budget.autostart else "run"
+
+
+__all__ = [
+    "STEP_DOF_PER_SECOND",
+    "DEFAULT_AUTOSTART",
+    "DEFAULT_LIMIT",
+    "DEFAULT_BYTES_LIMIT",
+    "BUDGET_ENV",
+    "AUTOSTART_ENV",
+    "BYTES_ENV",
+    "Cost",
+    "bytes_text",
+    "duration_text",
+    "degrees_of_freedom",
+    "segment_nodes",
+    "run_bytes",
+    "point_cost",
+    "sweep_cost",
+    "ramp_cost",
+    "diagnosis_runs",
+    "diagnosis_cost",
+    "Budgets",
+    "budgets",
+    "BudgetError",
+    "admit",
+]
