@@ -19,8 +19,13 @@ def decode_upload(contents, name: str, accepted: str, max_bytes: int, size_text,
     """
     if not isinstance(contents, str) or "," not in contents:
         raise InputError(f"{name}: the upload arrived without content; accepted is {accepted}")
+    encoded = contents.split(",", 1)[1]
+    # base64 carries 3 bytes in 4 characters: a text longer than that of max_bytes is
+    # refused before it is decoded (the size given is the file's, from the text's length)
+    if len(encoded) > 4 * (max_bytes // 3 + 1) + 4:
+        raise InputError(f"{name} is {size_text(len(encoded.rstrip('=')) * 3 // 4)}; accepted is {size_accepted or accepted}")
     try:
-        data = base64.b64decode(contents.split(",", 1)[1], validate=True)
+        data = base64.b64decode(encoded, validate=True)
     except (binascii.Error, ValueError):
         raise InputError(f"{name}: the upload is not valid base64 data"
                          + (f"; accepted is {accepted}" if base64_accepted else "")) from None

@@ -22,13 +22,15 @@ import time
 import dash
 from dash import Input, Output, State, callback, dash_table, dcc, html, no_update
 
-from dampersim.errors import DampersimError
+from dampersim.discrepancy.upload import MAX_CAMPAIGN_ZIP_BYTES
+from dampersim.errors import DampersimError, InputError
+from dampersim.incidents import public_message
 from dampersim.views.discrepancy import (
     CAMPAIGN_ACCEPTED,
     MIN_TORSIONAL_POINTS,
     UPLOAD_PREFIX,
     campaign_summary,
-    diagnosis_seconds,
+    diagnosis_admission,
     discrepancy_choice,
     discrepancy_figures,
     discrepancy_folder,
@@ -39,17 +41,27 @@ from dampersim.views.discrepancy import (
     parse_discrepancy_query,
     ranking_rows,
     unpack_campaign_zip,
+    upload_in_use,
     upload_label,
     verdict_summary,
 )
 from dampersim.views.notices import notice
-from dampersim.views.rigdata import KINDS, RECORDING_ACCEPTED, confirm_import, stage_recording
+from dampersim.views.rigdata import IMPORT_COMMAND, KINDS, MAX_RECORDING_BYTES, RECORDING_ACCEPTED, confirm_import, stage_recording
 from dampersim.views.sweeps import SweepRegistry
-from pages import _frame as F, _jobs as J, _widgets as W
+from pages import _frame as F, _jobs as J, _uploads as U, _widgets as W
 
 PAGE = "discrepancy"
 
 dash.register_page(__name__, path="/discrepancy", name="Discrepancy", title="Discrepancy · dampersim", order=9)
+
+# files above the page's limits are refused in the browser and never posted
+CAMPAIGN_SIZE_CHECK = U.size_checked_upload(
+    "discrepancy-upload", MAX_CAMPAIGN_ZIP_BYTES,
+    "Diagnose a larger campaign folder on the server's command line: python -m dampersim diagnose CAMPAIGN.")
+RECORDING_SIZE_CHECK = U.size_checked_upload(
+    "discrepancy-import-upload", MAX_RECORDING_BYTES,
+    f"Import a larger recording on the server's command line ({IMPORT_COMMAND}), then diagnose it with "
+    "python -m dampersim diagnose CAMPAIGN.")
 
 CALIBRATION_LABELS = {
     "outer_stiffness": "outer spring rate",
@@ -120,6 +132,7 @@ def layout(**query):
                 id="discrepancy-upload", children=html.Div(["Drop a campaign .zip here or ", html.A("choose one")]),
                 className="upload", multiple=False, accept=".zip,application/zip"),
                 hint=f"Accepted: {CAMPAIGN_ACCEPTED}."),
+            *U.components("discrepancy-upload"),
             html.Div(id="discrepancy-upload-notices", className="notices"),
         ]),
         W.section("Import a rig recording", [
@@ -128,6 +141,7 @@ def layout(**query):
                 className="upload", multiple=False, accept=".mf4,.mdf,.tdms,.mat,.csv,.txt"),
                 hint=f"Accepted: {RECORDING_ACCEPTED}. The channel mapping and the proposed cuts are shown on the "
                      "right for review before anything is created."),
+            *U.components("discrepancy-import-upload"),
             html.Div(id="discrepancy-import-notices", className="notices"),
         ]),
         W.run_panel(PAGE, "Run diagnosis"),
@@ -173,10 +187,10 @@ def upload(contents, filename, options):
     try:
         upload_id = unpack_campaign_zip(contents, filename)
     except DampersimError as exc:
-        return no_update, no_update, W.render_notices([notice(f"The upload was refused: {exc}", "error")])
+        return no_update, no_update, W.render_notices([notice(f"The upload was refused: {public_message(exc)}", "error")])
     except Exception as exc:  # never let a strange file take the page down
         return no_update, no_update, W.render_notices([notice(
-            f"The upload was refused: {filename or 'the file'} could not be read ({type(exc).__name__}: {exc}); "
+            f"The upload was refused: {filename or 'the file'} could not be read ({public_message(exc, 'campaign upload')}); "
             f"accepted is {CAMPAIGN_ACCEPTED}", "error")])
     value = UPLOAD_PREFIX + upload_id
     options = [o for o in (options or []) if o.get("value") != value] + [{"label": upload_label(upload_id), "value": value}]
@@ -188,12 +202,12 @@ def upload(contents, filename, options):
     Output("discrepancy-campaign", "options"),
     Output("discrepancy-campaign", "value"),
     Output("discrepancy-upload-notices", "children"),
-    Input("discrepancy-upload", "contents"),
-    State("discrepancy-upload", "filename"),
+    Input("discrepancy-upload-data", "data"),
     State("discrepancy-campaign", "options"),
     prevent_initial_call=True,
 )
-def upload_cb(contents, filename, options):
+def upload_cb(data, options):
+    contents, filename = U.store_contents(data)  # passed on by the browser's size check
     return upload(contents, filename, options)
 
 
@@ -233,11 +247,12 @@ def preview_recording(contents, filename):
     try:
         preview = stage_recording(contents, filename)
     except DampersimError as exc:
-        return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(f"The recording was refused: {exc}", "error")])
+        return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(
+            f"The recording was refused: {public_message(exc)}", "error")])
     except Exception as exc:  # a file the readers did not foresee: say so, keep serving
         return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(
-            f"The recording was refused: {name} could not be read ({type(exc).__name__}: {exc}); accepted is "
-            f"{RECORDING_ACCEPTED}", "error")])
+            f"The recording was refused: {name} could not be read ({public_message(exc, 'recording upload')}); "
+            f"accepted is {RECORDING_ACCEPTED}", "error")])
     text = (f"{name} was read: {len(preview['cuts'])} proposed cut(s). Review them on the right, then press "
             "Create campaign.")
     level = "success" if preview["cuts"] else "warning"
@@ -254,11 +269,11 @@ def preview_recording(contents, filename):
     Output("discrepancy-import-create", "disabled"),
     Output("discrepancy-import-create-notices", "children", allow_duplicate=True),
     Output("discrepancy-import-notices", "children"),
-    Input("discrepancy-import-upload", "contents"),
-    State("discrepancy-import-upload", "filename"),
+    Input("discrepancy-import-upload-data", "data"),
     prevent_initial_call=True,
 )
-def preview_recording_cb(contents, filename):
+def preview_recording_cb(data):
+    contents, filename = U.store_contents(data)  # passed on by the browser's size check
     return preview_recording(contents, filename)
 
 
@@ -273,10 +288,11 @@ def create_campaign(n_clicks, staged, rows, options):
     try:
         out = confirm_import(staged["id"], rows)
     except DampersimError as exc:
-        return no_update, no_update, W.render_notices([notice(f"The campaign was not created: {exc}", "error")])
+        return no_update, no_update, W.render_notices([notice(f"The campaign was not created: {public_message(exc)}",
+                                                              "error")])
     except Exception as exc:  # reported on the page, never raised into Dash
         return no_update, no_update, W.render_notices([notice(
-            f"The campaign was not created: unexpected {type(exc).__name__}: {exc}", "error")])
+            f"The campaign was not created: {public_message(exc, 'campaign import')}", "error")])
     value = out["value"]
     options = [o for o in (options or []) if o.get("value") != value] + [{"label": out["label"], "value": value}]
     return options, value, W.render_notices(out["notices"])
@@ -299,7 +315,7 @@ def create_campaign_cb(n_clicks, staged, rows, options):
 def report(summary: dict):
     """The validation report of a campaign (see campaign_summary) as page content."""
     if summary.get("error"):
-        return W.render_notices([notice(f"This campaign cannot be read: {summary['error']}. "
+        return W.render_notices([notice(f"This campaign cannot be read: {public_message(InputError(summary['error']))}. "
                                         f"Accepted is {CAMPAIGN_ACCEPTED}.", "error")])
     head = html.P([html.B(summary["name"]), f": {summary['valid']} of {summary['rows']} test points valid "
                    f"({summary['torsional']} torsional, {summary['ramps']} ramps)."
@@ -328,7 +344,7 @@ def report_for(value):
     try:
         return report(campaign_summary(folder))
     except Exception as exc:  # a campaign the reader did not foresee: say so, keep serving
-        return W.render_notices([notice(f"This campaign cannot be read ({type(exc).__name__}: {exc}); "
+        return W.render_notices([notice(f"This campaign cannot be read ({public_message(exc, 'campaign report')}); "
                                         f"accepted is {CAMPAIGN_ACCEPTED}.", "error")])
 
 
@@ -356,7 +372,7 @@ def request(run, initial, values, base_params, autorun):
             return out
         summary = campaign_summary(folder)
     except DampersimError as exc:
-        out["notices"] = notices + [notice(f"This campaign cannot be diagnosed: {exc}", "error")]
+        out["notices"] = notices + [notice(f"This campaign cannot be diagnosed: {public_message(exc)}", "error")]
         out["status"] = "Not started."
         return out
     if not summary["ready"]:
@@ -364,25 +380,35 @@ def request(run, initial, values, base_params, autorun):
             f"This campaign cannot be diagnosed: {summary['torsional']} valid torsional test point(s), at least "
             f"{MIN_TORSIONAL_POINTS} are needed (see the validation report).", "error")])
         return out
-    if run or (initial and autorun):
+    by_link = bool(initial and autorun and not run)
+    rule, text = diagnosis_admission(summary, started_by_link=by_link)
+    if rule == "refuse":
+        out["status"] = W.render_notices([notice(text, "error")])
+        return out
+    if run or (by_link and rule == "run"):
         out["job"] = {"state": state}
         out["status"] = f"Starting the diagnosis of {summary['torsional']} torsional test points…"
         return out
-    est = diagnosis_seconds(summary["record_s"])
-    out["status"] = W.render_notices([notice(
-        f"Not diagnosed yet: {summary['torsional']} torsional test points, about {est:.0f} s on this server. "
-        "Press Run diagnosis.", "info")])
+    if by_link:  # a link asked for more than it may start by itself
+        out["status"] = W.render_notices([notice(text, "info")])
+        return out
+    out["status"] = W.render_notices([notice(f"Not diagnosed yet: {text}. Press Run diagnosis.", "info")])
     return out
 
 
 def job(job_data, progress):
-    state = job_data["state"]
-    folder = discrepancy_folder(state, example_campaigns())
-    if folder is None:
+    # the state comes back from the browser: resolved again like a link, never trusted
+    state_in = job_data.get("state") if isinstance(job_data, dict) else None
+    value = discrepancy_value(state_in) if isinstance(state_in, dict) else None
+    state, _notices, folder = discrepancy_choice(value if isinstance(value, str) else None, example_campaigns())
+    if folder is None or (isinstance(state_in, dict) and discrepancy_value(state) != value):
         return {"error": "the campaign is no longer on this server (upload it again)"}
     reg = SweepRegistry()
     t0 = time.monotonic()
     try:
+        rule, text = diagnosis_admission(campaign_summary(folder), started_by_link=False)
+        if rule == "refuse":
+            return {"error": text}
         reg.start(PAGE, 0)
         progress(0, 100, "reading the campaign…")
 
@@ -391,12 +417,11 @@ def job(job_data, progress):
             extra = J.others_text(reg.others(), "run", "on this server share the cores")
             progress(int(round(100 * fraction)), 100, f"{text} · {time.monotonic() - t0:.0f} s{extra}")
 
-        view = discrepancy_view(folder, progress=on_progress)
+        with upload_in_use(state):  # not evicted by the uploads quota while it is diagnosed
+            view = discrepancy_view(folder, progress=on_progress)
         return {"key": view["key"]}
-    except DampersimError as exc:
-        return {"error": str(exc)}
-    except Exception as exc:  # reported on the page, never raised into Dash
-        return {"error": f"unexpected {type(exc).__name__}: {exc}"}
+    except Exception as exc:  # reported on the page (no traceback, no server path), never raised into Dash
+        return {"error": public_message(exc, "discrepancy diagnosis")}
     finally:
         reg.stop()
 

@@ -13,8 +13,10 @@ from dash import ALL, Input, Output, State, callback, ctx, dcc, html, no_update
 from dash.exceptions import PreventUpdate
 
 from dampersim.errors import DampersimError
+from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import (
+    MAX_UPLOAD_BYTES,
     apply_table_edits,
     parameters_toml,
     parameters_view,
@@ -23,11 +25,17 @@ from dampersim.views.params import (
     resolve_system,
 )
 from dampersim.views.state import parse_query, to_query
-from pages import _frame as F, _jobs as J, _widgets as W
+from pages import _frame as F, _jobs as J, _uploads as U, _widgets as W
 
 PAGE = "parameters"
 
 dash.register_page(__name__, path="/parameters", name="Parameters", title="Parameters · dampersim", order=5)
+
+# a file above the page's limit is refused in the browser and never posted
+UPLOAD_SIZE_CHECK = U.size_checked_upload(
+    "parameters-upload", MAX_UPLOAD_BYTES,
+    "Check a larger parameter file on the server's command line with python -m dampersim params validate FILE "
+    "and use it there with --params FILE.")
 
 def table_rows(system):
     """Editable rows: every dotted parameter except labels and rig-element names."""
@@ -79,7 +87,8 @@ def layout(**query):
         W.section("This parameter set", [html.Div(_set_info(system, state["params"]), id="parameters-info")]),
         W.section("File", [
             dcc.Upload(id="parameters-upload", children=html.Div(["Drop a TOML parameter file here or ", html.A("choose one")]),
-                       className="upload", multiple=False),
+                       className="upload", multiple=False, accept=".toml,text/plain"),
+            *U.components("parameters-upload"),
             html.Div([html.Button("Download TOML", id="parameters-download-btn", n_clicks=0, className="btn btn-primary"),
                       html.Button("Reset to default", id="parameters-reset", n_clicks=0, className="btn btn-secondary")],
                      className="buttons", style={"marginTop": "10px"}),
@@ -126,9 +135,10 @@ def parameters_action(action, rows, params, contents=None, filename=None):
     if action == "upload":
         try:
             system = parse_uploaded_parameters(contents, filename)
-        except DampersimError as exc:
+        except Exception as exc:  # noqa: BLE001 - a refused file changes nothing; no traceback reaches the page
             return {"params": None, "rows": None, "system": None, "status": notice("Upload refused.", "error"),
-                    "notices": [notice(f"The file was not loaded: {exc}. The current parameter set is unchanged.", "error")]}
+                    "notices": [notice(f"The file was not loaded: {public_message(exc, 'parameter upload')}. "
+                                       "The current parameter set is unchanged.", "error")]}
         new = params_for_system(system)
         n = len(new["overrides"])
         what = f"{n} value{'s' if n != 1 else ''} differ from the default set" if not new["set"] else \
@@ -165,14 +175,14 @@ def parameters_action(action, rows, params, contents=None, filename=None):
     Input("parameters-apply", "n_clicks"),
     Input("parameters-undo", "n_clicks"),
     Input("parameters-reset", "n_clicks"),
-    Input("parameters-upload", "contents"),
-    State("parameters-upload", "filename"),
+    Input("parameters-upload-data", "data"),
     State({"type": "param-value", "name": ALL}, "value"),
     State({"type": "param-value", "name": ALL}, "id"),
     State("parameters-params", "data"),
     prevent_initial_call="initial_duplicate",
 )
-def on_action(_v, _a, _u, _r, contents, filename, values, ids, params):
+def on_action(_v, _a, _u, _r, upload_data, values, ids, params):
+    contents, filename = U.store_contents(upload_data)  # passed on by the browser's size check
     rows = [{"name": i["name"], "value": v} for i, v in zip(ids or [], values or [])]
     initial, _ = J.trigger_kind()
     trig = ctx.triggered_id
@@ -180,7 +190,7 @@ def on_action(_v, _a, _u, _r, contents, filename, values, ids, params):
         system = resolve_system(params)
         return (no_update, no_update, "", [], to_query(PAGE, {"params": params}), params, _set_info(system, params))
     action = {"parameters-validate": "validate", "parameters-apply": "apply", "parameters-undo": "undo",
-              "parameters-reset": "reset", "parameters-upload": "upload"}.get(trig)
+              "parameters-reset": "reset", "parameters-upload-data": "upload"}.get(trig)
     if action == "upload" and not contents:
         raise PreventUpdate
     out = parameters_action(action, rows, params, contents, filename)

@@ -19,6 +19,7 @@ report listing every problem by file and field; it never modifies the folder.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -116,14 +117,265 @@ class Campaign:
         return "\n".join(lines)
 
 
-def _read_table(path):
+#: Largest manifest.csv read at all [bytes] (4 MB holds some 40 000 rows of this format).
+MAX_MANIFEST_BYTES = 4 * 2**20
+#: Most columns a manifest may have (six are used; readers ignore the others).
+MAX_MANIFEST_COLUMNS = 64
+#: Largest Parquet footer read [bytes]: the footer holds the schema and the row-group
+#: directory, a few kB for a time series; a forged one could claim gigabytes.
+MAX_PARQUET_FOOTER_BYTES = 1 * 2**20
+#: Longest CSV header line read [bytes].
+MAX_CSV_HEADER_BYTES = 64 * 2**10
+
+
+@dataclass(frozen=True)
+class CampaignLimits:
+    """Caps checked by :func:`scan_campaign` from metadata alone, before any time series is
+    loaded (``None``: no cap). The dashboard's uploads use
+    :data:`dampersim.discrepancy.upload.UPLOAD_LIMITS`; the command line reads campaigns
+    without caps.
+
+    ``rows``: manifest rows (test points); ``samples_per_file`` and ``total_samples``:
+    rows of the time series (one sample of every column); ``record_s``: seconds of one
+    record (its rows over its manifest sample rate); ``total_record_s``: seconds of all
+    records together, the measure of the diagnosis's cost (every record is simulated);
+    ``bytes_per_sample``: the uncompressed size of one Parquet row, or the average length
+    of a CSV line; ``columns``: columns of a time-series file.
+    """
+
+    rows: int | None = None
+    samples_per_file: int | None = None
+    total_samples: int | None = None
+    record_s: float | None = None
+    total_record_s: float | None = None
+    bytes_per_sample: int | None = None
+    columns: int | None = None
+
+
+def _manifest_bytes(mpath) -> bytes:
+    """The manifest's bytes, refused above :data:`MAX_MANIFEST_BYTES`."""
+    try:
+        with open(mpath, "rb") as fh:
+            data = fh.read(MAX_MANIFEST_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"{MANIFEST}: not readable ({exc.strerror or exc})") from None
+    if len(data) > MAX_MANIFEST_BYTES:
+        raise InputError(f"{MANIFEST} is larger than {MAX_MANIFEST_BYTES // 2**20} MB; accepted is a table of one row per "
+                         f"test point with the columns {', '.join(MANIFEST_COLUMNS)}")
+    return data
+
+
+def read_manifest(mpath, limits: CampaignLimits | None = None):
+    """manifest.csv as a DataFrame of text (empty cells: NaN): bounded in bytes and columns
+    before it is parsed, and in rows by ``limits.rows``. InputError names the file, the
+    count found and the limit."""
+    import pandas as pd
+
+    data = _manifest_bytes(mpath)
+    header = data.split(b"\n", 1)[0]
+    ncols = header.count(b",") + 1
+    if ncols > MAX_MANIFEST_COLUMNS:
+        raise InputError(f"{MANIFEST}: {ncols} columns in the header; accepted are at most {MAX_MANIFEST_COLUMNS} "
+                         f"(required: {', '.join(MANIFEST_COLUMNS)})")
+    try:
+        man = pd.read_csv(io.BytesIO(data), dtype=str, keep_default_na=False, na_values=[""],
+                          encoding="utf-8", on_bad_lines="error")
+    except Exception as exc:  # noqa: BLE001 - any parse failure is reported as bad input
+        raise InputError(f"{MANIFEST}: not a readable CSV table ({_short(exc)})") from None
+    if limits is not None and limits.rows is not None and len(man) > limits.rows:
+        raise InputError(f"{MANIFEST}: {len(man)} rows (test points); accepted are at most {limits.rows} here "
+                         "(diagnose larger campaigns with python -m dampersim diagnose CAMPAIGN)")
+    return man
+
+
+def _short(exc) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 200 else text[:200] + "…"
+
+
+def _cell(value) -> str:
+    """A manifest cell as stripped text ("" when empty)."""
+    return str(value).strip() if value == value and value is not None else ""
+
+
+def repeated_files(man) -> dict:
+    """{file entry: [manifest rows]} of the files a manifest lists more than once (entries
+    compared after normalising the path; rows numbered as in :func:`read_campaign`)."""
+    rows: dict = {}
+    if "file" not in man.columns:
+        return {}
+    for i, value in enumerate(man["file"]):
+        rel = _cell(value)
+        if rel:
+            rows.setdefault(os.path.normpath(rel.replace("\\", "/")), []).append(i + 2)
+    return {k: v for k, v in rows.items() if len(v) > 1}
+
+
+def _rows_text(rows) -> str:
+    shown = ", ".join(str(r) for r in rows[:10])
+    return shown + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")
+
+
+def file_shape(fpath, rel: str = "", max_lines: int | None = None) -> dict:
+    """Rows, columns and uncompressed bytes of a time-series file from its metadata, no data
+    loaded: the Parquet footer (its length checked first) or the CSV header line and a line
+    count that stops after ``max_lines`` lines (``rows`` is then ``max_lines + 1``, i.e.
+    "more than"). Returns {"rows", "columns" (names), "bytes", "more"}; InputError for a
+    file that is neither, or a damaged one."""
+    rel = rel or os.path.basename(fpath)
+    low = fpath.lower()
+    if low.endswith(".parquet"):
+        import pyarrow.parquet as pq
+
+        try:
+            size = os.path.getsize(fpath)
+            with open(fpath, "rb") as fh:
+                if size < 12:
+                    raise ValueError("too short")
+                fh.seek(size - 8)
+                tail = fh.read(8)
+            if tail[4:] != b"PAR1":
+                raise ValueError("no Parquet footer")
+            footer = int.from_bytes(tail[:4], "little")
+            if footer > MAX_PARQUET_FOOTER_BYTES or footer > size - 12:
+                raise InputError(f"{rel}: a Parquet footer of {footer} bytes; accepted is at most "
+                                 f"{MAX_PARQUET_FOOTER_BYTES // 2**20} MB of metadata")
+            meta = pq.ParquetFile(fpath, memory_map=False).metadata
+            names = [meta.schema.column(i).name for i in range(meta.num_columns)]
+            nbytes = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+            return {"rows": int(meta.num_rows), "columns": names, "bytes": int(nbytes), "more": False}
+        except InputError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a damaged file is bad input
+            raise InputError(f"{rel}: not a readable Parquet file ({_short(exc)})") from None
+    if low.endswith(".csv"):
+        try:
+            size = os.path.getsize(fpath)
+            with open(fpath, "rb") as fh:
+                header = fh.readline(MAX_CSV_HEADER_BYTES + 1)
+                if len(header) > MAX_CSV_HEADER_BYTES:
+                    raise InputError(f"{rel}: a header line longer than {MAX_CSV_HEADER_BYTES // 1024} kB; accepted is one "
+                                     "line of column names")
+                lines, tail = 0, b"\n"
+                while chunk := fh.read(2**20):
+                    lines += chunk.count(b"\n")
+                    tail = chunk[-1:]
+                    if max_lines is not None and lines > max_lines:
+                        break
+                else:
+                    lines += tail != b"\n"  # a last line without a newline
+        except OSError as exc:
+            raise InputError(f"{rel}: not readable ({exc.strerror or exc})") from None
+        names = [c.strip().strip('"') for c in header.decode("utf-8", "replace").rstrip("\r\n").split(",")]
+        more = max_lines is not None and lines > max_lines
+        return {"rows": lines, "columns": names, "bytes": size, "more": more}
+    raise InputError(f"{rel}: accepted file types are .csv and .parquet")
+
+
+def scan_campaign(path, limits: CampaignLimits) -> dict:
+    """Check the campaign in folder ``path`` against ``limits`` from metadata alone: the
+    manifest (bounded bytes, columns and rows), repeated file references, and each listed
+    file's rows, columns and size from its Parquet footer or CSV header and line count. No
+    time series is loaded, so a small file that would expand to gigabytes is refused at the
+    cost of reading its footer.
+
+    Returns {"rows", "samples", "record_s" (all records), "torsional_record_s",
+    "torsional"}; raises InputError at the first cap exceeded, naming the file (and row),
+    the count found and the limit. Entries that are missing, unreadable or malformed are
+    left to :func:`read_campaign`'s report.
+    """
+    path = os.fspath(path)
+    mpath = os.path.join(path, MANIFEST)
+    if not os.path.isfile(mpath):
+        raise InputError(f"{MANIFEST}: missing; a campaign folder needs {MANIFEST} with columns {', '.join(MANIFEST_COLUMNS)}")
+    man = read_manifest(mpath, limits)
+    rep = repeated_files(man)
+    if rep:
+        rel, rows = next(iter(rep.items()))
+        raise InputError(f"{MANIFEST}: the file {rel!r} is listed {len(rows)} times (rows {_rows_text(rows)}); accepted is "
+                         "each time series listed once, one row per test point")
+    out = {"rows": len(man), "samples": 0, "record_s": 0.0, "torsional_record_s": 0.0, "torsional": 0}
+    if "file" not in man.columns:
+        return out
+    inside = os.path.realpath(path)
+    cap = limits.samples_per_file
+    for i, row in enumerate(man.to_dict("records")):
+        rel = _cell(row.get("file"))
+        fpath = os.path.realpath(os.path.join(inside, rel)) if rel else ""
+        if not rel or os.path.commonpath([inside, fpath]) != inside or not os.path.isfile(fpath):
+            continue  # read_campaign reports it (paths_outside refuses entries outside the folder)
+        line = f"{MANIFEST} row {i + 2}"
+        shape = file_shape(fpath, rel, max_lines=cap)
+        n = shape["rows"]
+        if cap is not None and n > cap:
+            count = f"more than {cap}" if shape["more"] else str(n)
+            raise InputError(f"{rel} ({line}): {count} samples; accepted are at most {cap} samples per "
+                             "file here (import or diagnose longer records on the command line)")
+        if limits.columns is not None and len(shape["columns"]) > limits.columns:
+            raise InputError(f"{rel} ({line}): {len(shape['columns'])} columns; accepted are at most {limits.columns} "
+                             f"(required: {', '.join(SERIES_COLUMNS)})")
+        if limits.bytes_per_sample is not None and n and shape["bytes"] > limits.bytes_per_sample * n + 2**16:
+            raise InputError(f"{rel} ({line}): {shape['bytes'] / n:.0f} bytes per sample; accepted are at most "
+                             f"{limits.bytes_per_sample} (a row of numbers)")
+        out["samples"] += n
+        if limits.total_samples is not None and out["samples"] > limits.total_samples:
+            raise InputError(f"{rel} ({line}): the campaign's files hold more than {limits.total_samples} samples in all "
+                             f"({out['samples']} up to this row); accepted are at most {limits.total_samples} here "
+                             "(diagnose larger campaigns with python -m dampersim diagnose CAMPAIGN)")
+        fs = _num(row.get("sample_rate_hz"))
+        if fs is None or fs <= 0:
+            continue  # read_campaign reports the rate; the sample caps bound this file
+        seconds = max(n - 1, 0) / fs
+        if limits.record_s is not None and seconds > limits.record_s:
+            raise InputError(f"{rel} ({line}): a record of {seconds:.4g} s ({n} samples at {fs:g} Hz); accepted are records "
+                             f"of at most {limits.record_s:g} s here")
+        out["record_s"] += seconds
+        if _cell(row.get("kind")).lower() == "torsional":
+            out["torsional_record_s"] += seconds
+            out["torsional"] += 1
+        if limits.total_record_s is not None and out["record_s"] > limits.total_record_s:
+            raise InputError(f"{rel} ({line}): the campaign's records last more than {limits.total_record_s:g} s in all "
+                             f"({out['record_s']:.4g} s up to this row), above what this server diagnoses; accepted are "
+                             f"at most {limits.total_record_s:g} s of records here (diagnose larger campaigns with "
+                             "python -m dampersim diagnose CAMPAIGN)")
+    return out
+
+
+def _read_table(path, columns=None):
+    """A time series as a DataFrame; only ``columns`` (those present) when given."""
     import pandas as pd
 
     if path.lower().endswith(".parquet"):
+        if columns is not None:
+            import pyarrow.parquet as pq
+
+            have = set(pq.ParquetFile(path, memory_map=False).schema_arrow.names)
+            return pd.read_parquet(path, columns=[c for c in columns if c in have])
         return pd.read_parquet(path)
     if path.lower().endswith(".csv"):
+        if columns is not None:
+            wanted = set(columns)
+            return pd.read_csv(path, usecols=lambda c: c in wanted)
         return pd.read_csv(path)
     raise InputError(f"{path}: accepted file types are .csv and .parquet")
+
+
+#: Largest campaign.json read [bytes]; a larger one is ignored like a malformed one.
+MAX_CAMPAIGN_JSON_BYTES = 256 * 2**10
+
+
+def read_campaign_json(path) -> dict:
+    """campaign.json of the campaign folder ``path`` as a dict ({} when missing, larger than
+    :data:`MAX_CAMPAIGN_JSON_BYTES` or malformed: it is optional)."""
+    try:
+        with open(os.path.join(os.fspath(path), "campaign.json"), "rb") as fh:
+            data = fh.read(MAX_CAMPAIGN_JSON_BYTES + 1)
+        if len(data) > MAX_CAMPAIGN_JSON_BYTES:
+            return {}
+        meta = json.loads(data.decode("utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return {}
+    return meta if isinstance(meta, dict) else {}
 
 
 def _num(value):
@@ -134,12 +386,15 @@ def _num(value):
     return x if math.isfinite(x) else None
 
 
-def read_campaign(path, strict: bool = False) -> Campaign:
+def read_campaign(path, strict: bool = False, limits: CampaignLimits | None = None) -> Campaign:
     """Read and validate the campaign in folder ``path``.
 
     Returns a :class:`Campaign` with the valid points and every problem found. A missing
     or unreadable manifest raises :class:`InputError`; so does ``strict`` when any problem
-    was found. Nothing in the folder is written.
+    was found. With ``limits``, :func:`scan_campaign` checks them first from metadata and
+    its InputError stops the reading before any time series is loaded. A file listed in
+    more than one row is read once, for its first row; the other rows are reported. Nothing
+    in the folder is written.
     """
     path = os.fspath(path)
     mpath = os.path.join(path, MANIFEST)
@@ -147,21 +402,14 @@ def read_campaign(path, strict: bool = False) -> Campaign:
         raise InputError(f"campaign {path!r}: accepted is a folder holding {MANIFEST}")
     if not os.path.isfile(mpath):
         raise InputError(f"{mpath}: missing; a campaign folder needs {MANIFEST} with columns {', '.join(MANIFEST_COLUMNS)}")
+    if limits is not None:
+        scan_campaign(path, limits)
     name = os.path.basename(os.path.abspath(path))
     description = ""
-    meta_path = os.path.join(path, "campaign.json")
-    if os.path.isfile(meta_path):
-        try:
-            with open(meta_path, encoding="utf-8") as fh:
-                meta = json.load(fh)
-            name = str(meta.get("name", name))
-            description = str(meta.get("description", ""))
-        except (OSError, ValueError, AttributeError):
-            pass
-    try:
-        man = _read_table(mpath)
-    except Exception as exc:  # noqa: BLE001 - any parse failure is reported as bad input
-        raise InputError(f"{mpath}: not a readable CSV table ({exc})") from None
+    meta = read_campaign_json(path)
+    name = str(meta.get("name", name))[:200]
+    description = str(meta.get("description", ""))[:2000]
+    man = read_manifest(mpath, limits)
     problems = []
     missing = [c for c in MANIFEST_COLUMNS if c not in man.columns]
     if missing:
@@ -172,7 +420,8 @@ def read_campaign(path, strict: bool = False) -> Campaign:
         return camp
     points = []
     seen = set()
-    for i, row in man.iterrows():
+    first_row = {}  # normalised file entry -> the first manifest row listing it
+    for i, row in enumerate(man[list(MANIFEST_COLUMNS)].to_dict("records")):
         line = f"{MANIFEST} row {i + 2}"
         pid = str(row["id"]).strip() if row["id"] == row["id"] else ""
         bad = []
@@ -193,10 +442,16 @@ def read_campaign(path, strict: bool = False) -> Campaign:
         fs = _num(row["sample_rate_hz"])
         if fs is None or not fs > 0:
             bad.append(Problem(line, "sample_rate_hz", f"{row['sample_rate_hz']!r}: accepted is a positive sample rate", pid))
-        rel = str(row["file"]).strip() if row["file"] == row["file"] else ""
+        rel = _cell(row["file"])
         fpath = os.path.join(path, rel)
-        if not rel or not os.path.isfile(fpath):
+        key = os.path.normpath(rel.replace("\\", "/")) if rel else ""
+        if key and key in first_row:
+            bad.append(Problem(line, "file", f"{rel!r} is already listed in row {first_row[key]}; accepted is each time "
+                                             "series listed once (this row is ignored)", pid))
+        elif not rel or not os.path.isfile(fpath):
             bad.append(Problem(rel or line, "file", "file listed in the manifest does not exist", pid))
+        if key:
+            first_row.setdefault(key, i + 2)
         if bad:
             problems += bad
             continue
@@ -204,7 +459,7 @@ def read_campaign(path, strict: bool = False) -> Campaign:
         problems += probs
         if pt is not None:
             points.append(pt)
-    listed = {os.path.normpath(str(f)) for f in man["file"] if f == f}
+    listed = {os.path.normpath(_cell(f).replace("\\", "/")) for f in man["file"] if _cell(f)}
     for sub, _dirs, files in os.walk(path):
         for f in files:
             rel = os.path.normpath(os.path.relpath(os.path.join(sub, f), path))
@@ -224,14 +479,14 @@ def paths_outside(path) -> list:
     path = os.fspath(path)
     inside = os.path.realpath(path)
     try:
-        man = _read_table(os.path.join(path, MANIFEST))
-    except Exception:  # noqa: BLE001 - reported by read_campaign
+        man = read_manifest(os.path.join(path, MANIFEST))
+    except InputError:  # reported by read_campaign
         return []
     if "file" not in man.columns:
         return []
     out = []
     for i, value in enumerate(man["file"]):
-        rel = str(value).strip() if value == value else ""
+        rel = _cell(value)
         if not rel:
             continue
         target = os.path.realpath(os.path.join(inside, rel))
@@ -243,9 +498,9 @@ def paths_outside(path) -> list:
 def _read_point(fpath, rel, pid, kind, rpm, tq, fs):
     probs = []
     try:
-        df = _read_table(fpath)
+        df = _read_table(fpath, SERIES_COLUMNS + ("windup_deg", "input_flange_deg", "output_flange_deg"))
     except Exception as exc:  # noqa: BLE001
-        return None, [Problem(rel, "", f"unreadable ({exc})", pid)]
+        return None, [Problem(rel, "", f"unreadable ({_short(exc)})", pid)]
     need = list(SERIES_COLUMNS)
     windup_cols = None
     if kind == "ramp":
@@ -376,4 +631,5 @@ def write_campaign(path, points, name: str = "", description: str = "", fmt: str
 
 
 __all__ = ["MANIFEST", "MANIFEST_COLUMNS", "SERIES_COLUMNS", "KINDS", "Problem", "MeasuredPoint", "Campaign",
+           "CampaignLimits", "read_manifest", "read_campaign_json", "repeated_files", "file_shape", "scan_campaign",
            "read_campaign", "paths_outside", "write_campaign", "write_point", "write_manifest", "check_point"]

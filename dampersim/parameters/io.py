@@ -16,8 +16,13 @@ import tomli_w
 
 from dampersim.errors import ParameterError
 from dampersim.parameters import model as m
-from dampersim.parameters.validation import validate
+from dampersim.parameters.validation import check_rig_size, validate
 from dampersim.fileio import write_text_atomic
+
+#: Largest parameter file read [characters]: a complete set with a rig of the largest
+#: accepted size (64 elements) is about 12 kB of TOML; files from the dashboard are
+#: limited to 256 kB before they get here.
+MAX_TOML_CHARS = 1 * 2**20
 
 # dataclass type of each nested field that holds a dataclass
 _NESTED = {
@@ -82,7 +87,7 @@ def _convert(path, raw, kind):
             raise ParameterError(path, raw, "a whole number")
         try:
             val = float(raw)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError(path, raw, "a whole number") from None
         if not math.isfinite(val) or val != int(val):
             raise ParameterError(path, raw, "a whole number")
@@ -92,7 +97,7 @@ def _convert(path, raw, kind):
             raise ParameterError(path, raw, "a number")
         try:
             val = float(raw)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError(path, raw, "a number") from None
         return val
     if kind is str:
@@ -130,6 +135,7 @@ def from_dict(cls, data: dict, path: str = ""):
         elif cls is m.Rig and name == "elements":
             if not isinstance(raw, list):
                 raise ParameterError(full, raw, "a list of rig element tables")
+            check_rig_size(len(raw), full)  # counted before a single element is built
             kwargs[name] = tuple(from_dict(m.RigElement, e, f"{full}[{i}]") for i, e in enumerate(raw))
         else:
             kwargs[name] = _convert(full, raw, _field_kind(f))
@@ -156,11 +162,19 @@ def dumps_toml(system: m.DamperSystem) -> str:
 
 
 def loads_toml(text: str) -> m.DamperSystem:
-    """Parse and validate a parameter set from TOML text."""
+    """Parse and validate a parameter set from TOML text (at most :data:`MAX_TOML_CHARS`
+    characters). Every refusal is a ParameterError naming the field, the value and what is
+    accepted."""
+    if not isinstance(text, str):
+        raise ParameterError("file", type(text).__name__, "TOML text")
+    if len(text) > MAX_TOML_CHARS:
+        raise ParameterError("file", f"{len(text)} characters", f"a parameter file of at most {MAX_TOML_CHARS} characters")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError("file", "(TOML text)", "valid TOML", str(exc)) from None
+    except RecursionError:
+        raise ParameterError("file", "(TOML text)", "valid TOML", "arrays or tables nested too deeply") from None
     return system_from_dict(data)
 
 
@@ -174,9 +188,11 @@ def load_toml(path) -> m.DamperSystem:
     """Read and validate a parameter set from a TOML file."""
     try:
         with open(path, encoding="utf-8") as fh:
-            text = fh.read()
+            text = fh.read(MAX_TOML_CHARS + 1)
     except OSError as exc:
         raise ParameterError("file", str(path), "a readable TOML file", exc.strerror or str(exc)) from None
+    except UnicodeDecodeError:
+        raise ParameterError("file", str(path), "a UTF-8 text file") from None
     return loads_toml(text)
 
 

@@ -15,6 +15,34 @@ from dampersim.parameters import model as m
 
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
+#: Most rig elements of a parameter set. The thesis's rig has five (gearbox, flanges,
+#: transducer, coupling, output motor); every element is a degree of freedom of the
+#: model, and the solver's stability check solves a dense eigenproblem over all of them.
+MAX_RIG_ELEMENTS = 64
+#: Most degrees of freedom of the model a parameter set may describe (bodies, spring
+#: segments, rig elements and effect DOFs: :func:`degrees_of_freedom`). The segment
+#: ranges allow at most ~670; the cap keeps the stability check's dense eigen-solve
+#: (cubic in the DOFs: ~1 s at 2000) bounded whatever else changes.
+MAX_DEGREES_OF_FREEDOM = 2000
+
+
+def check_rig_size(n_elements: int, field: str = "rig.elements") -> None:
+    """Refuse more than :data:`MAX_RIG_ELEMENTS` rig elements (ParameterError naming the
+    field, the count and the limit)."""
+    if n_elements > MAX_RIG_ELEMENTS:
+        raise ParameterError(field, f"{n_elements} elements", f"at most {MAX_RIG_ELEMENTS} rig elements")
+
+
+def degrees_of_freedom(system: m.DamperSystem) -> int:
+    """Degrees of freedom of the model of ``system``: the three damper bodies, the inner
+    nodes of each discretised spring (outer, pair outer and, when nested, pair inner), the
+    rig elements and one per enabled clutch-slip or pendulum-absorber effect (as the solver
+    lays them out)."""
+    sv, eff = system.solver, system.effects
+    springs = (sv.outer_segments - 1) + (sv.inner_segments - 1) * (2 if system.inner.nested is not None else 1)
+    extra = int(bool(eff.clutch_slip.enabled)) + int(bool(eff.pendulum_absorber.enabled))
+    return 3 + springs + len(system.rig.elements) + extra
+
 
 def describe_range(meta) -> str:
     """What a numeric field accepts, from its metadata: "a value in [4, 200]", "a value > 0 kg m^2"."""
@@ -119,7 +147,14 @@ def validate(system: m.DamperSystem) -> m.DamperSystem:
     for part in ("outer", "pair_outer", "pair_inner"):
         if getattr(system.friction, part) is None:
             raise ParameterError(f"friction.{part}", None, "a table with alpha (and optional preload)")
+    if not isinstance(system.rig.elements, tuple):
+        raise ParameterError("rig.elements", type(system.rig.elements).__name__, "a list of rig element tables")
+    check_rig_size(len(system.rig.elements))  # before anything iterates over them
     check_fields(system)
+    ndof = degrees_of_freedom(system)
+    if ndof > MAX_DEGREES_OF_FREEDOM:
+        raise ParameterError("solver", f"{ndof} degrees of freedom",
+                             f"at most {MAX_DEGREES_OF_FREEDOM} (bodies, spring segments and rig elements)")
     _check_set(system.outer, "outer")
     _check_set(system.inner, "inner")
     total = system.friction.alpha_sec + system.friction.alpha_ter

@@ -3,8 +3,17 @@ campaign's validation report, and the cached diagnosis of :mod:`dampersim.discre
 with its figures.
 
 Uploaded zips are unpacked by :mod:`dampersim.discrepancy.upload` under
-``cache_dir()/"campaign-uploads"/<id>``, where the id is a hash of the zip's bytes, so the
-same upload lands in the same folder. The diagnosis document and its wording come from
+``private_dir("uploads")/<id>`` (a 0700 folder of the cache), where the id is a hash of the
+zip's bytes, so the same upload lands in the same folder; the uploads quota evicts the
+least recently used ones. Every campaign the page reads is first checked from metadata
+against :data:`dampersim.discrepancy.upload.UPLOAD_LIMITS`, so reading it for the
+validation report stays bounded in time and memory.
+
+Cost rule of the diagnosis (:func:`diagnosis_admission`): its cost is estimated by
+:func:`dampersim.costs.diagnosis_cost` (model runs of the diagnosis times steps x DOF of
+its longest record) and judged by :func:`dampersim.costs.admit`: above the server budget
+it is refused (also on Run); above the auto-start budget it does not start from a link
+(``?upload=`` or ``?campaign=``): the page shows the estimate and the Run button. The diagnosis document and its wording come from
 :mod:`dampersim.discrepancy.report`.
 """
 
@@ -29,16 +38,16 @@ from dampersim.discrepancy.report import (
     ranking_rows,
     verdict_summary,
 )
-from dampersim.discrepancy.upload import CAMPAIGN_ACCEPTED, UPLOAD_ID
+from dampersim.discrepancy.upload import CAMPAIGN_ACCEPTED, UPLOAD_ID, UPLOAD_LIMITS
 from dampersim.errors import InputError
 from dampersim.parameters import default_parameters
 from dampersim.plotting import discrepancy as diagnosis_plots
-from dampersim.locations import repo_root
+from dampersim.locations import private_dir, repo_root
 from dampersim.views.notices import notice, query_value
-from dampersim.views.store import cache_dir, cached_view, view_key
+from dampersim.views.store import cached_view, view_key
 
-#: Sub-directory of the cache with the unpacked campaign uploads.
-UPLOADS_SUBDIR = "campaign-uploads"
+#: Sub-directory of the cache with the unpacked campaign uploads (a private folder).
+UPLOADS_SUBDIR = "uploads"
 #: Keyword arguments of :func:`dampersim.discrepancy.diagnose.diagnose` used by the
 #: dashboard (empty: the library's defaults); part of the cache key.
 DISCREPANCY_OPTIONS: dict = {}
@@ -77,8 +86,9 @@ def default_example(examples: dict):
 
 # --------------------------------------------------------------------------- uploads
 def uploads_dir() -> Path:
-    """Folder of the unpacked campaign uploads of this server (in its cache)."""
-    return cache_dir() / UPLOADS_SUBDIR
+    """Folder of the unpacked campaign uploads of this server: ``private_dir("uploads")``
+    (created 0700, refused when another user owns it or others may write to it)."""
+    return private_dir(UPLOADS_SUBDIR)
 
 
 def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
@@ -89,8 +99,27 @@ def unpack_campaign_zip(contents, filename: str = "campaign.zip") -> str:
 
 
 def upload_folder(upload_id):
-    """Campaign folder of an earlier upload, or None (unknown id or cleared cache)."""
-    return upload.upload_folder(uploads_dir(), upload_id)
+    """Campaign folder of an earlier upload, or None (unknown id, cleared cache or evicted)."""
+    if not isinstance(upload_id, str) or not UPLOAD_ID.match(upload_id):
+        return None
+    try:
+        root = uploads_dir()
+    except InputError as exc:  # a cache folder refused (owner, mode): logged, the page falls back
+        from dampersim.incidents import report
+
+        report(exc, "uploads folder")
+        return None
+    return upload.upload_folder(root, upload_id)
+
+
+def upload_in_use(state: dict):
+    """A context manager that keeps the upload of a page state from being evicted while the
+    ``with`` block runs (nothing for a bundled example)."""
+    import contextlib
+
+    if state.get("upload") and UPLOAD_ID.match(str(state["upload"])):
+        return upload.upload_in_use_by(uploads_dir(), state["upload"])
+    return contextlib.nullcontext()
 
 
 def upload_label(upload_id: str) -> str:
@@ -184,6 +213,8 @@ def summarise_campaign(camp) -> dict:
     return {"name": camp.name, "description": camp.description, "rows": rep["rows"], "valid": len(camp.points),
             "torsional": len(camp.torsional), "ramps": len(camp.ramps),
             "record_s": float(sum(p.duration for p in camp.torsional)),
+            "longest_s": float(max((p.duration for p in camp.torsional), default=0.0)),
+            "ramp_s": float(max((p.duration for p in camp.ramps), default=0.0)),
             "problems": rep["problems"], "error": None, "ready": len(camp.torsional) >= MIN_TORSIONAL_POINTS}
 
 
@@ -221,7 +252,7 @@ def campaign_summary(folder) -> dict:
 def _campaign_summary(folder: str, _files: tuple) -> dict:
     folder = Path(folder)
     try:
-        camp = read_campaign(folder)
+        camp = read_campaign(folder, limits=UPLOAD_LIMITS)
     except InputError as exc:
         msg = str(exc).replace(str(folder) + os.sep, "").replace(str(folder), folder.name)
         return {"name": folder.name, "description": "", "rows": 0, "valid": 0, "torsional": 0, "ramps": 0,
@@ -233,6 +264,33 @@ def diagnosis_seconds(record_s: float, cores: int | None = None) -> float:
     """Rough wall time [s] of diagnosing torsional records of ``record_s`` seconds in all."""
     cores = cores or Runner(None).workers
     return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * float(record_s) / max(1, cores)
+
+
+def diagnosis_admission(summary: dict, started_by_link: bool) -> tuple:
+    """The cost rule for diagnosing a campaign (its :func:`campaign_summary`): ``("run",
+    text)``, ``("ask", text)`` (estimated above :data:`AUTOSTART_DIAGNOSIS_S` and started by
+    a link, not by Run: show the text and the Run button) or ``("refuse", text)`` (above
+    :data:`DIAGNOSIS_BUDGET_S`). The estimate grows with the number of points times their
+    duration (the seconds of torsional record), see :func:`diagnosis_seconds`."""
+    from dampersim import costs
+    from dampersim.discrepancy.effects import EFFECTS
+
+    est = diagnosis_seconds(summary.get("record_s") or 0.0)
+    n_candidates = len(DISCREPANCY_OPTIONS.get("candidates") or EFFECTS)
+    cost = costs.diagnosis_cost(default_parameters(), int(summary.get("torsional") or 0),
+                                float(summary.get("longest_s") or 0.0), n_candidates, int(summary.get("ramps") or 0),
+                                float(summary.get("ramp_s") or 0.0))
+    what = (f"{summary.get('torsional', 0)} torsional test points, {float(summary.get('record_s') or 0):.3g} s of "
+            f"record: {cost.text()}, about {est:.0f} s on this server")
+    try:
+        rule = costs.admit(cost)
+    except costs.BudgetError as exc:
+        return "refuse", (f"This diagnosis is not run here: {exc}. Diagnose the campaign on the command line with "
+                          "python -m dampersim diagnose CAMPAIGN.")
+    if started_by_link and rule == "ask":
+        return "ask", (f"Not started automatically: {what}, above the auto-start budget of this server "
+                       f"({costs.AUTOSTART_ENV}). Press Run diagnosis to start it.")
+    return "run", what
 
 
 def campaign_digest(folder) -> str:
@@ -293,7 +351,7 @@ def discrepancy_view(folder, progress=None, cache_only: bool = False, workers=No
     if cache_only:
         return None
     t0 = time.perf_counter()
-    camp = read_campaign(folder)
+    camp = read_campaign(folder, limits=UPLOAD_LIMITS)
     summary = summarise_campaign(camp)  # the campaign just read, not a second reading
     diag = diagnose(camp, system, workers=workers, progress=progress, **DISCREPANCY_OPTIONS)
     doc = diagnosis_document(diag)
@@ -325,6 +383,8 @@ __all__ = [
     "summarise_campaign",
     "campaign_summary",
     "diagnosis_seconds",
+    "diagnosis_admission",
+    "upload_in_use",
     "campaign_digest",
     "discrepancy_key",
     "discrepancy_figures",

@@ -5,7 +5,7 @@ Two steps, as on the command line (``python -m dampersim import``), but with the
 between done in the page:
 
 1. :func:`stage_recording` decodes the browser upload, keeps the bytes in the cache under
-   ``cache_dir()/"recording-uploads"/<id>/<file name>`` (the id: the first 16 hex digits
+   ``private_dir("recording-uploads")/<id>/<file name>`` (the id: the first 16 hex digits
    of the SHA-256 of the bytes, so the same file lands in the same folder; the file name
    reduced to a safe base name) and runs :func:`dampersim.rigdata.importer.import_campaign`
    once into a scratch folder to report the channel mapping and the cuts it proposes
@@ -34,10 +34,11 @@ import time
 from pathlib import Path
 
 from dampersim.discrepancy.campaign import KINDS
+from dampersim.discrepancy import upload as campaign_uploads
 from dampersim.discrepancy.upload import MAX_CAMPAIGN_ZIP_BYTES, UPLOAD_ID
 from dampersim.errors import InputError
 from dampersim.fileio import write_text_atomic
-from dampersim.locations import cache_dir
+from dampersim.locations import private_dir
 from dampersim.rigdata import importer
 from dampersim.rigdata.importer import import_campaign
 from dampersim.uploads import decode_upload
@@ -71,8 +72,9 @@ _PREVIEW = "preview.json"
 
 # --------------------------------------------------------------------------- staging
 def staging_dir() -> Path:
-    """Folder of the staged recordings of this server (in its cache)."""
-    return cache_dir() / STAGING_SUBDIR
+    """Folder of the staged recordings of this server: a private folder of its cache
+    (created 0700, refused when another user owns it or others may write to it)."""
+    return private_dir(STAGING_SUBDIR)
 
 
 def safe_file_name(filename) -> str:
@@ -284,6 +286,15 @@ def confirm_import(upload_id, rows) -> dict:
         except BaseException:
             meta_path.unlink(missing_ok=True)
             raise
+        size = campaign_uploads.folder_bytes(target)
+        try:  # the new campaign counts against the uploads quota like an uploaded zip
+            with campaign_uploads.quota_lock(root):
+                campaign_uploads.make_room(root, size, keep=cid)
+        except InputError:
+            campaign_uploads.remove_upload(root, cid)
+            raise
+        write_text_atomic(meta_path, json.dumps({"filename": meta.get("filename") or name, "name": title,
+                                                 "source": "rig recording", "bytes": size}))
     finally:
         Path(cuts_path).unlink(missing_ok=True)
     lines = [_clean(line, [target, folder, root]) for line in report.lines]

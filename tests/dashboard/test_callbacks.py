@@ -301,12 +301,12 @@ def test_parameters_actions(pages, cache_dir):
 def test_parameters_callback_and_download(pages, cache_dir):
     p = pages.parameters
     params = {"set": None, "overrides": {"inertias.primary": 0.3}}
-    res = with_triggers(p.on_action, ["parameters-validate.n_clicks", "parameters-apply.n_clicks"], 0, 0, 0, 0, None, None, [], [], params)
+    res = with_triggers(p.on_action, ["parameters-validate.n_clicks", "parameters-apply.n_clicks"], 0, 0, 0, 0, None, [], [], params)
     assert res[4] == "?inertias.primary=0.3"  # page load mirrors the link state
     rows = p.table_rows(views.resolve_system(params))
     values = ["7" if r["name"] == "solver.outer_segments" else r["value"] for r in rows]
     ids = [{"type": "param-value", "name": r["name"]} for r in rows]
-    res = with_triggers(p.on_action, ["parameters-apply.n_clicks"], 0, 1, 0, 0, None, None, values, ids, params)
+    res = with_triggers(p.on_action, ["parameters-apply.n_clicks"], 0, 1, 0, 0, None, values, ids, params)
     assert res[0]["overrides"] == {"inertias.primary": 0.3, "solver.outer_segments": 7}
     assert "solver.outer_segments=7" in res[4]
     dl = p.download(1, params)

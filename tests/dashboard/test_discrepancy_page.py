@@ -277,10 +277,10 @@ def test_layout_over_http_good_and_bad_links(dc):
 
 
 def test_bad_upload_over_http_gives_the_notice(dc, cache_dir):
-    values = {"discrepancy-upload.contents": zip_upload({"readme.txt": b"no campaign here"}),
-              "discrepancy-upload.filename": "readme.zip",
+    values = {"discrepancy-upload-data.data": {"contents": zip_upload({"readme.txt": b"no campaign here"}),
+                                               "filename": "readme.zip"},
               "discrepancy-campaign.options": [{"label": f"example: {EXAMPLE}", "value": EXAMPLE}]}
-    r = dc.call("discrepancy-upload-notices.children", values, changed=["discrepancy-upload.contents"])
+    r = dc.call("discrepancy-upload-notices.children", values, changed=["discrepancy-upload-data.data"])
     assert r.status_code == 200
     resp = r.get_json()["response"]
     assert "discrepancy-campaign" not in resp  # no_update: the chosen campaign stays

@@ -228,18 +228,19 @@ def _upload(text):
 
 def parameters_values(contents=None, filename=None, apply=0):
     return {"parameters-validate.n_clicks": 0, "parameters-apply.n_clicks": apply, "parameters-undo.n_clicks": 0,
-            "parameters-reset.n_clicks": 0, "parameters-upload.contents": contents, "parameters-upload.filename": filename,
+            "parameters-reset.n_clicks": 0,
+            "parameters-upload-data.data": {"contents": contents, "filename": filename} if contents else None,
             '{"name":["ALL"],"type":"param-value"}.value': [], '{"name":["ALL"],"type":"param-value"}.id': [],
             "parameters-params.data": {"set": None, "overrides": {"inertias.primary": 0.3}}}
 
 
 def test_parameter_upload_over_http(dc, cache_dir):
     r = dc.call("parameters-params.data", parameters_values(_upload("not = [valid"), "broken.toml"),
-                changed=["parameters-upload.contents"])
+                changed=["parameters-upload-data.data"])
     resp = r.get_json()["response"]
     assert "parameters-params" not in resp and "broken.toml" in json.dumps(resp["parameters-run-notices"])
     good = views.parameters_toml(views.resolve_system({"set": None, "overrides": {"solver.inner_segments": 10}}))
-    r = dc.call("parameters-params.data", parameters_values(_upload(good), "good.toml"), changed=["parameters-upload.contents"])
+    r = dc.call("parameters-params.data", parameters_values(_upload(good), "good.toml"), changed=["parameters-upload-data.data"])
     resp = r.get_json()["response"]
     assert resp["parameters-params"]["data"] == {"set": None, "overrides": {"solver.inner_segments": 10}}
     assert resp["parameters-url"]["search"] == "?solver.inner_segments=10"

@@ -241,9 +241,9 @@ def test_forged_or_unknown_upload_ids_are_refused(cache_dir, recordings):
 # ----------------------------------------------------------------------------- over HTTP
 def test_preview_and_create_over_http(cache_dir, recordings):
     dc = DashClient(app.app)
-    r = dc.call("discrepancy-import-staged.data", {"discrepancy-import-upload.contents": recordings["mdf4"],
-                                                   "discrepancy-import-upload.filename": "rig-run.mf4"},
-                changed=["discrepancy-import-upload.contents"])
+    r = dc.call("discrepancy-import-staged.data", {"discrepancy-import-upload-data.data": {
+                    "contents": recordings["mdf4"], "filename": "rig-run.mf4"}},
+                changed=["discrepancy-import-upload-data.data"])
     assert r.status_code == 200, r.data[:500]
     resp = r.get_json()["response"]
     staged, rows = resp["discrepancy-import-staged"]["data"], resp["discrepancy-import-cuts"]["data"]
