@@ -8,7 +8,7 @@ result). Meanwhile a probe requests a light page (``/_dash-dependencies``) every
 Printed per session count:
 
 - probe latency p50 / p95 [ms] while the sweeps run;
-- the most job processes seen at once (the server's direct children), the most processes
+- the most job processes seen at once (descendants leading their own session), the most processes
   in the server's tree, and the peak RSS of the whole tree [MB];
 - sessions whose sweep answered, and wall time [s];
 - orphans: processes of the server still alive after it was stopped with SIGTERM.

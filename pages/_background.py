@@ -174,8 +174,8 @@ class _JobFunction:
 
 
 def _job_main(job_fn, store_dir, registry, job_id, args, context):
-    """Entry point of a job process (forked): own session and process group, default
-    signal handling, then run, store the result and tell the registry."""
+    """Entry point of a job process: own session and process group, default signal
+    handling, then run, store the result and tell the registry."""
     os.setsid()
     for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         signal.signal(sig, signal.SIG_DFL)
@@ -186,6 +186,62 @@ def _job_main(job_fn, store_dir, registry, job_id, args, context):
     finally:
         cache.close()
         registry.finish(job_id, ok)
+
+
+#: Modules the fork server imports once, so that a job process starts in a fraction of a
+#: second (it still builds the app, which opens no connection shared with the server).
+PRELOAD = ("numpy", "pandas", "scipy.signal", "numba", "plotly.graph_objects", "dash", "diskcache", "psutil",
+           "dampersim.views.sweeps", "dampersim.views.hysteresis", "dampersim.views.discrepancy",
+           "dampersim.views.segments", "dampersim.views.explorer", "dampersim.views.pulsation",
+           "dampersim.views.studies")
+
+
+def _job_entry(blob, fn_key, app_module, store_dir, registry_folder, job_id, args, context):
+    """Entry point of a job process started by the fork server: a fresh interpreter, so it
+    carries no SQLite connection, lock or thread of the server (a process forked from the
+    threaded server inherits SQLite's view of locks other threads hold, and its first
+    cache write fails with "disk I/O error"). The job function travels pickled when it
+    can (a module-level function); otherwise it is found by its Dash key after importing
+    ``app_module`` (which registers the dashboard's callbacks)."""
+    job_fn = pickle.loads(blob) if blob is not None else _registered_job_fn(fn_key, app_module)
+    _job_main(job_fn, store_dir, JobRegistry(registry_folder), job_id, args, context)
+
+
+def _registered_job_fn(fn_key, app_module):
+    from dash.background_callback.managers import BaseBackgroundCallbackManager as Base
+
+    def find():
+        for key, fn, progress in Base.functions:
+            if key == fn_key:
+                return _JobFunction(fn, progress)
+        return None
+
+    found = find()
+    if found is None and app_module:
+        importlib.import_module(app_module)
+        found = find()
+    if found is None:
+        raise LookupError(f"background callback {fn_key[:12]} is not defined by {app_module!r}")
+    return found
+
+
+_FORKSERVER = {"pid": None, "ctx": None}
+
+
+def _forkserver():
+    """The multiprocessing context of job processes: a fork server (an exec'd process with
+    :data:`PRELOAD` imported) forks each job. A process forked from one that already
+    started its fork server cannot use that server (it belongs to the parent): there,
+    job processes are spawned (a fresh interpreter each, about a second slower to start,
+    equally clean)."""
+    owner = _FORKSERVER["pid"]
+    if owner is not None and owner != os.getpid():
+        return multiprocessing.get_context("spawn")
+    if _FORKSERVER["ctx"] is None:
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(list(PRELOAD))
+        _FORKSERVER.update(pid=os.getpid(), ctx=ctx)
+    return _FORKSERVER["ctx"]
 
 
 def _slim_context(context) -> dict:
@@ -218,8 +274,13 @@ class JobQueueManager(DiskcacheManager):
     handle Dash gets (and signs) is the id of a *waiter*, not a pid. Build it with
     :func:`make_manager`."""
 
-    def __init__(self, cache, registry: JobRegistry, *, queued_progress=None):
+    def __init__(self, cache, registry: JobRegistry, *, queued_progress=None, start_method="forkserver",
+                 app_module="app"):
+        if start_method not in ("forkserver", "fork"):
+            raise ValueError(f"start_method = {start_method!r}: accepted is 'forkserver' or 'fork'")
         self.registry = registry
+        self.start_method = start_method
+        self.app_module = app_module
         self.queued_progress = queued_progress or default_queued_progress
         self._store = str(cache.directory)
         self._procs: dict = {}
@@ -258,9 +319,19 @@ class JobQueueManager(DiskcacheManager):
         job_fn = self.func_registry.get(fn_key)
         if job_fn is None:
             raise LookupError(f"background callback {fn_key[:12]} is not registered in this server process")
-        proc = multiprocessing.get_context("fork").Process(
-            target=_job_main, args=(job_fn, self._store, self.registry, job_id, args, context),
-            name=f"dampersim-job-{job_id}")
+        if self.start_method == "fork":
+            proc = multiprocessing.get_context("fork").Process(
+                target=_job_main, args=(job_fn, self._store, self.registry, job_id, args, context),
+                name=f"dampersim-job-{job_id}")
+        else:
+            try:  # a module-level function travels by reference; a closure is found by its key
+                blob = pickle.dumps(job_fn, protocol=pickle.HIGHEST_PROTOCOL)
+            except (pickle.PicklingError, AttributeError, TypeError):
+                blob = None
+            proc = _forkserver().Process(
+                target=_job_entry,
+                args=(blob, fn_key, self.app_module, self._store, str(self.registry.folder), job_id, args, context),
+                name=f"dampersim-job-{job_id}")
         proc.start()
         with self._lock:
             self._procs[job_id] = proc
@@ -430,7 +501,7 @@ def _progress_outputs() -> int:
 
 
 def make_manager(cache_root, *, max_jobs=None, per_session=None, idle_timeout_s=None, registry_dir=None,
-                 queued_progress=None) -> JobQueueManager:
+                 queued_progress=None, start_method="forkserver", app_module="app") -> JobQueueManager:
     """Background-callback manager whose jobs go through the job registry.
 
     cache_root: folder of the result cache (created 0700 when missing; it holds pickles,
@@ -439,10 +510,16 @@ def make_manager(cache_root, *, max_jobs=None, per_session=None, idle_timeout_s=
         defaults from ``$DAMPERSIM_MAX_JOBS``, ``$DAMPERSIM_JOBS_PER_SESSION``, cores, 2, 30 s).
     registry_dir: folder of the registry (default ``private_dir("jobs")``).
     queued_progress: ``(n_outputs, text) -> list`` of progress values of a queued job.
+    start_method: "forkserver" (default: job processes forked by a clean fork server, see
+        :func:`_job_entry`) or "fork" (forked from this process: only for a process that
+        holds no SQLite connection in another thread, e.g. a test's own app).
+    app_module: module whose import defines the background callbacks (the dashboard's
+        ``app``), imported by a job process that cannot receive its function pickled.
     """
     os.makedirs(cache_root, mode=0o700, exist_ok=True)
     registry = JobRegistry(registry_dir, max_jobs=max_jobs, per_session=per_session, idle_timeout_s=idle_timeout_s)
-    manager = JobQueueManager(diskcache.Cache(str(cache_root)), registry, queued_progress=queued_progress)
+    manager = JobQueueManager(diskcache.Cache(str(cache_root)), registry, queued_progress=queued_progress,
+                              start_method=start_method, app_module=app_module)
     _MANAGERS.append(manager)
     if not _ATEXIT:
         # after multiprocessing's own exit handler, so it runs first (atexit is last in,

@@ -263,7 +263,10 @@ def status_line(view, data):
         text = f"Done in {s.get('compute_time_s', 0):.1f} s."
         if "points" in s:
             text += f" {s['points']} test points: {s.get('computed', 0)} computed now, {s.get('from_cache', 0)} from the cache."
-    return render_notices([notice(text, "success")])
+    notes = [notice(text, "success")]
+    if s.get("cache_notice"):  # e.g. a full disk: the results are shown but were not stored
+        notes.append(notice(s["cache_notice"], "warning"))
+    return render_notices(notes)
 
 
 def cost_notice(cost, decision: str, button: str) -> dict:

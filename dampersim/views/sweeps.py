@@ -22,6 +22,7 @@ from dampersim.plotting import (
     order_cut_figure,
 )
 from dampersim.units import number_text
+from dampersim import jobs
 from dampersim.sweeps.cache import ResultCache, cache_key, kernel_source_hash
 from dampersim.sweeps.executor import SweepCancelled, run_sweep
 from dampersim.sweeps.grid import make_grid, parse_range, parse_torques
@@ -139,6 +140,9 @@ def _run_points(system, points, duration, window, orders, progress=None, cancel=
         status = sweep_status(system, points, duration, window)
         missing = status["total"] - status["cached"]
         executor = "serial" if missing <= 2 else "processes"
+    if executor == "processes" and workers is None:
+        # the cores are shared with the other jobs running on this server
+        workers = jobs.sweep_workers()
     try:
         return run_sweep(system, points, executor=executor, workers=workers, progress=progress, cancel=cancel,
                          duration=duration, window=window, orders=orders)
@@ -156,6 +160,8 @@ def _sweep_summary(result) -> dict:
         "computed": int(result.computed),
         "from_cache": int(result.from_cache),
         "sweep_time_s": float(result.wall_time),
+        # a full disk: the points were computed but not stored (the page says so)
+        "cache_notice": getattr(result, "cache_notice", None),
         "executor": result.executor,
     }
 

@@ -86,8 +86,8 @@ def sweep_link(i: int, points: int = 6, duration: float = 8.0) -> str:
 
 
 class Monitor(threading.Thread):
-    """Samples the server's process tree every ``period`` s: job processes (the server's
-    direct children), all descendants and their summed RSS [B]."""
+    """Samples the server's process tree every ``period`` s: job processes (descendants
+    that lead their own session), all processes of the tree and their summed RSS [B]."""
 
     def __init__(self, pid: int, period: float = 0.1):
         super().__init__(daemon=True)
@@ -105,17 +105,24 @@ class Monitor(threading.Thread):
             return
         while not self.stop_flag.is_set():
             try:
-                children = [c for c in server.children() if c.status() != psutil.STATUS_ZOMBIE
-                            and "resource_tracker" not in " ".join(c.cmdline())]
                 tree = [server, *server.children(recursive=True)]
+                # a job process leads its own session (it calls setsid), so its pool
+                # workers and the fork server that started it are not counted as jobs
+                jobs = []
+                for p in tree[1:]:
+                    try:
+                        if p.status() != psutil.STATUS_ZOMBIE and os.getsid(p.pid) == p.pid:
+                            jobs.append(p)
+                    except (OSError, psutil.Error):
+                        pass
                 rss = 0
                 for p in tree:
                     try:
                         rss += p.memory_info().rss
                     except psutil.NoSuchProcess:
                         pass
-                self.max_jobs = max(self.max_jobs, len(children))
-                self.job_pids.update(c.pid for c in children)
+                self.max_jobs = max(self.max_jobs, len(jobs))
+                self.job_pids.update(p.pid for p in jobs)
                 self.max_procs = max(self.max_procs, len(tree))
                 self.max_rss = max(self.max_rss, rss)
             except psutil.NoSuchProcess:
