@@ -44,6 +44,11 @@ from dampersim.solver.layout import NREC
 
 #: Kernel speed [step·DOF per second of one core], measured as the module docstring says.
 STEP_DOF_PER_SECOND = 5.0e7
+#: Most work [step·DOF] a page computes in the request thread while the browser waits
+#: (Explorer, Segments), whatever the server's budget: about 60 s of one core, so a few
+#: such requests cannot hold every request thread for long. Larger points belong to the
+#: command line (``dampersim simulate``).
+FOREGROUND_WORK = 60.0 * STEP_DOF_PER_SECOND
 #: Default autostart budget [step·DOF]: about 24 s of one core.
 DEFAULT_AUTOSTART = 1.2e9
 #: Default limit [step·DOF]: about 15 minutes of one core.
@@ -298,35 +303,42 @@ def budgets() -> Budgets:
 class BudgetError(InputError):
     """A request above the server's budget; the message gives the estimate and the limit."""
 
-    def __init__(self, cost: Cost, budget: Budgets):
+    def __init__(self, cost: Cost, budget: Budgets, foreground: bool = False):
         self.cost = cost
         self.budget = budget
-        over_work = cost.work > budget.limit
+        self.foreground = bool(foreground)
         over = []
-        if over_work:
+        if cost.work > budget.limit:
             over.append(f"{_work_text(budget.limit)} step·DOF (about {duration_text(budget.limit / STEP_DOF_PER_SECOND)} "
                         f"of one core, {BUDGET_ENV})")
+        elif foreground and cost.work > FOREGROUND_WORK:
+            over.append(f"{_work_text(FOREGROUND_WORK)} step·DOF (about {duration_text(FOREGROUND_WORK / STEP_DOF_PER_SECOND)} "
+                        "of one core) in a page that computes while you wait; run it with `dampersim simulate` "
+                        "on the command line")
         if cost.bytes > budget.bytes_limit:
             over.append(f"{bytes_text(budget.bytes_limit)} of memory ({BYTES_ENV})")
         super().__init__(f"{cost.what} is {cost.text()} (about {duration_text(cost.seconds())} of one core); "
                          f"this server accepts at most {' and '.join(over)}")
 
     def __reduce__(self):
-        return (type(self), (self.cost, self.budget))
+        return (type(self), (self.cost, self.budget, self.foreground))
 
 
-def admit(cost: Cost, budget: Budgets | None = None) -> str:
+def admit(cost: Cost, budget: Budgets | None = None, *, foreground: bool = False) -> str:
     """``"run"`` when ``cost`` is within the autostart budget, ``"ask"`` when it is within
     the limit but above the autostart budget (start only on an explicit Run). Raises
-    :class:`BudgetError` above the work limit or the memory limit."""
+    :class:`BudgetError` above the work limit or the memory limit, and, for a request
+    computed in the request thread (``foreground``), above :data:`FOREGROUND_WORK`."""
     budget = budget if budget is not None else budgets()
-    if not (cost.work <= budget.limit and cost.bytes <= budget.bytes_limit):  # NaN is refused too
-        raise BudgetError(cost, budget)
+    limit = min(budget.limit, FOREGROUND_WORK) if foreground else budget.limit
+    if not (cost.work <= limit and cost.bytes <= budget.bytes_limit):  # NaN is refused too
+        raise BudgetError(cost, budget, foreground)
     return "ask" if cost.work > budget.autostart else "run"
 
 
 __all__ = [
     "STEP_DOF_PER_SECOND",
+    "FOREGROUND_WORK",
     "DEFAULT_AUTOSTART",
     "DEFAULT_LIMIT",
     "DEFAULT_BYTES_LIMIT",

@@ -43,7 +43,7 @@ def layout(**query):
     state, notices = parse_query(PAGE, query)
     # a link starts its sweep by itself only when every value in it was accepted (and the
     # request callback checks the autostart budget)
-    autorun = any(f.key in query for f in PAGES[PAGE]) and not notices
+    autorun = any(f.key in query for f in PAGES[PAGE])  # refused values: the defaults run if cheap
     controls = [
         W.section("Speed sweep", [
             W.control("Speeds", W.text("colourmap-speeds", state["speeds"], "900:2800:50"), "rpm",
@@ -142,7 +142,7 @@ def request(run, initial, values, base_params, autorun):
     missing = st["total"] - st["cached"]
     cost = state_cost(PAGE, system, state, n_points=missing)
     decision = costs.admit(cost)
-    if run or (initial and autorun and decision == "run" and not notices):  # refused values: wait for Run
+    if run or (initial and autorun and decision == "run" and not notices):  # a control's value refused: wait for Run
         out["job"] = {"state": state, "work": colourmap_key(system, state)}
         out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
         return out

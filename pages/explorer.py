@@ -74,9 +74,7 @@ def layout(**query):
             W.card(None, W.graph("explorer-energy", 420), wide=True),
         ], className="cards"),
     ]
-    # a link with refused values shows its estimate and waits for Run instead of computing
-    extra = [dcc.Store(id="explorer-base-params", data=state["params"]), dcc.Store(id="explorer-last-good"),
-             dcc.Store(id="explorer-autorun", data=not notices)]
+    extra = [dcc.Store(id="explorer-base-params", data=state["params"]), dcc.Store(id="explorer-last-good")]
     return F.page_frame(PAGE, "Explorer", "One test point on the rig: time traces, spectra, magnification per order, "
                         "windup against the hardstops and the energy balance. Sliders update on release.",
                         controls, content, notices, extra)
@@ -109,15 +107,16 @@ def _orders_table(rows):
 
 
 def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
-                     run=False, initial=False, autorun=True):
+                     run=False, initial=False):
     """Everything the Explorer shows for the current controls (plain function, testable).
 
     Returns a dict: figures {name: figure}, table, kpis, notices, search, params, error,
     pending. On a refused state (above the server's budget) or a failed simulation
-    ``error`` is set and the previous results stay (``figures`` is None). A point above
-    the autostart budget, or the first call of a link with refused values
-    (``initial`` and not ``autorun``), computes only on ``run``: ``pending`` is True and a
-    notice gives the estimate.
+    ``error`` is set and the previous results stay (``figures`` is None); the Explorer
+    computes in the request thread, so it also refuses points above
+    :data:`dampersim.costs.FOREGROUND_WORK`. A point above the autostart budget computes
+    only on ``run``: ``pending`` is True and a notice gives the estimate. A link's refused
+    values have already fallen back to their defaults (the URL contract), which run.
     """
     notices = []
     orders_text, notes = orders_text_from_rows(ks, amps, phases)
@@ -133,8 +132,8 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     try:
         if load_view(explorer_key(system, state)) is None:
             cost = state_cost(PAGE, system, state)
-            decision = costs.admit(cost)  # BudgetError above the server's limit: nothing runs
-            if not run and (decision == "ask" or (initial and not autorun)):
+            decision = costs.admit(cost, foreground=True)  # BudgetError above the limit: nothing runs
+            if not run and decision == "ask":
                 notices.append(J.cost_notice(cost, decision, "Run"))
                 return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": to_query(PAGE, state),
                         "params": state["params"], "error": None, "pending": True, "state": state}
@@ -174,14 +173,13 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     State("explorer-base-params", "data"),
     State("explorer-last-good", "data"),
     Input("explorer-run", "n_clicks"),
-    State("explorer-autorun", "data"),
     prevent_initial_call="initial_duplicate",
 )
 def update_explorer(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params, last_good,
-                    run_clicks=None, autorun=True):
+                    run_clicks=None):
     initial, run = W.triggers("explorer-run.n_clicks")
     out = explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
-                           run=run, initial=initial, autorun=autorun is not False)
+                           run=run, initial=initial)
     notices = W.render_notices(out["notices"])
     hidden, shown = {"display": "none"}, {"display": "block"}
     if out.get("pending"):

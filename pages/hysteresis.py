@@ -32,7 +32,7 @@ dash.register_page(__name__, path="/hysteresis", name="Hysteresis", title="Hyste
 def layout(**query):
     state, notices = parse_query(PAGE, query)
     # only a link whose every value was accepted starts by itself (within the autostart budget)
-    autorun = any(f.key in query for f in PAGES[PAGE]) and not notices
+    autorun = any(f.key in query for f in PAGES[PAGE])  # refused values: the defaults run if cheap
     controls = [
         W.section("Protocol ([thesis] Table 3.1)", [
             W.control("Ramp protocol", dcc.Dropdown(id="hysteresis-protocol", options=[{"label": protocol_label(p), "value": p} for p in PROTOCOL_NAMES],
@@ -116,7 +116,7 @@ def request(run, initial, values, base_params, autorun):
         return out
     n = len(state["speeds"].split(","))
     sim = simulated_seconds(state)
-    if run or (initial and autorun and decision == "run" and not notices):  # refused values: wait for Run
+    if run or (initial and autorun and decision == "run" and not notices):  # a control's value refused: wait for Run
         out["job"] = {"state": state, "work": hysteresis_key(system, state)}
         out["status"] = f"Starting: {n} speed{'s' if n > 1 else ''}, {sim:.0f} s simulated each…"
         return out

@@ -34,7 +34,7 @@ ORDER_OPTIONS = [{"label": f" {k}", "value": str(k)} for k in range(1, 9)]
 def layout(**query):
     state, notices = parse_query(PAGE, query)
     # only a link whose every value was accepted starts by itself (within the autostart budget)
-    autorun = any(f.key in query for f in PAGES[PAGE]) and not notices
+    autorun = any(f.key in query for f in PAGES[PAGE])  # refused values: the defaults run if cheap
     controls = [
         W.section("Test points", [
             W.control("Speeds", W.text("maps-speeds", state["speeds"], "1000:2800:200"), "rpm", cid="maps-speeds",
@@ -130,7 +130,7 @@ def request(run, initial, values, base_params, autorun):
         return out
     cost = state_cost(PAGE, system, state, n_points=st["total"] - st["cached"])
     decision = costs.admit(cost)
-    if run or (initial and autorun and decision == "run" and not notices):  # refused values: wait for Run
+    if run or (initial and autorun and decision == "run" and not notices):  # a control's value refused: wait for Run
         out["job"] = {"state": state, "work": maps_key(system, state)}
         out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
         return out

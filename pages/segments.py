@@ -62,8 +62,6 @@ def layout(**query):
         ], className="cards"),
         dcc.Store(id="segments-base-params", data=state["params"]),
         dcc.Store(id="segments-last-good"),
-        # a link with refused values shows its estimate and waits for Run instead of computing
-        dcc.Store(id="segments-autorun", data=not notices),
     ]
     return F.page_frame(PAGE, "Segment motion", "Compression of every segment over time, and the damper drawn from the simulated "
                         "node positions: the springs' end segments move first, the middle ones late.", controls, content, notices)
@@ -73,12 +71,12 @@ F.register_link_callbacks(PAGE)
 
 
 def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params,
-                     run=False, initial=False, autorun=True):
+                     run=False, initial=False):
     """State, view and notices for the current controls (plain function, testable).
 
-    As the Explorer's: above the server's budget ``error`` is set and nothing runs; above
-    the autostart budget (or on the first call of a link with refused values) ``pending``
-    is True, a notice gives the estimate and the point computes only on ``run``."""
+    As the Explorer's: above the server's budget (or the foreground limit) ``error`` is set
+    and nothing runs; above the autostart budget ``pending`` is True, a notice gives the
+    estimate and the point computes only on ``run``."""
     orders_text, notices = orders_text_from_rows(ks, amps, phases)
     state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
                                              "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
@@ -87,8 +85,8 @@ def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, 
     try:
         if load_view(segments_key(system, state)) is None:
             cost = state_cost(PAGE, system, state)
-            decision = costs.admit(cost)
-            if not run and (decision == "ask" or (initial and not autorun)):
+            decision = costs.admit(cost, foreground=True)
+            if not run and decision == "ask":
                 notices.append(J.cost_notice(cost, decision, "Run"))
                 return {"view": None, "state": state, "notices": notices, "error": None, "pending": True}
         view = segments_view(system, state)
@@ -130,14 +128,13 @@ def _table(rows):
     State("segments-base-params", "data"),
     State("segments-last-good", "data"),
     Input("segments-run", "n_clicks"),
-    State("segments-autorun", "data"),
     prevent_initial_call="initial_duplicate",
 )
 def update_segments(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params, last_good,
-                    run_clicks=None, autorun=True):
+                    run_clicks=None):
     initial, run = W.triggers("segments-run.n_clicks")
     out = segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, span, gain, base_params,
-                           run=run, initial=initial, autorun=autorun is not False)
+                           run=run, initial=initial)
     notices = W.render_notices(out["notices"])
     hidden, shown = {"display": "none"}, {"display": "block"}
     if out.get("pending"):

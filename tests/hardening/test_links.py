@@ -1,6 +1,7 @@
 """Hostile links and crafted job data on the Explorer, Segments, Colourmap, Maps and
 Hysteresis pages: each answered quickly, within a memory budget, with a notice that says
-what was refused, nothing started, and no traceback or server path in what the page shows.
+what was refused; what runs afterwards is only the safe default (the URL contract) within
+the autostart budget; no traceback or server path in what the page shows.
 
 Budgets used below, and why:
 * WALL = 2 s per request: a page load is a parse and a cache look-up (milliseconds);
@@ -77,6 +78,35 @@ def find(component, cid):
     return None
 
 
+def control_value(component, cid):
+    """The ``value`` of the control with id ``cid`` (the first component with both)."""
+    if getattr(component, "id", None) == cid and hasattr(component, "value"):
+        return component.value
+    children = getattr(component, "children", None)
+    for child in children if isinstance(children, (list, tuple)) else [children]:
+        if hasattr(child, "to_plotly_json"):
+            hit = control_value(child, cid)
+            if hit is not None:
+                return hit
+    return None
+
+
+def recorder(monkeypatch, module, name):
+    """Replace ``module.name`` (a view) by one that records the system and state it would
+    compute, then stops with a DampersimError (the page reports it and keeps serving)."""
+    from dampersim.errors import InputError
+
+    seen = []
+
+    def record(system, state, *a, **k):
+        if k.get("cache_only"):
+            return None
+        seen.append((system, dict(state)))
+        raise InputError("stopped by the test")
+    monkeypatch.setattr(module, name, record)
+    return seen
+
+
 def rows(n=6):
     return [2] + [None] * (n - 1), [300] + [None] * (n - 1), [0] + [None] * (n - 1)
 
@@ -91,17 +121,30 @@ def no_compute(monkeypatch, module, name):
 
 
 # ------------------------------------------------------------------------ explorer / segments
-def test_explorer_time_step_link_starts_nothing(pages, monkeypatch):
+def test_explorer_time_step_link_falls_back_to_the_safe_default(pages, monkeypatch):
     E = pages.explorer
     lay, text = bounded(E.layout, **{"solver.time_step": "1e-8", "duration": "20"})
     notices = text_of(find(lay, "explorer-link-notices"))
     assert "solver.time_step" in notices and "'1e-8'" in notices and "1e-07 to 0.0001" in notices
-    assert find(lay, "explorer-autorun").data is False  # a link with refused values waits for Run
-    no_compute(monkeypatch, E, "explorer_view")
+    # the URL contract: the page goes on with the default step; what runs is that cheap point
+    seen = recorder(monkeypatch, E, "explorer_view")
     ks, amps, phs = rows()
     out, text = bounded(E.explorer_outputs, 1500, 200, ks, amps, phs, 20.0, [], [], "pi", [], {"set": None, "overrides": {}},
-                        initial=True, autorun=False)
-    assert out["pending"] and "Not computed yet" in text and "Press Run" in text
+                        initial=True)
+    (system, state), = seen
+    assert system.solver.time_step == pytest.approx(1 / 60000) and state["duration"] == 20.0
+    assert costs.admit(costs.point_cost(system, 20.0)) == "run"
+
+
+def test_explorer_refuses_points_too_large_to_compute_while_the_browser_waits(pages, monkeypatch):
+    E = pages.explorer
+    monkeypatch.setenv(costs.BUDGET_ENV, "1e12")  # a generous server: the foreground limit still holds
+    monkeypatch.setenv(costs.BYTES_ENV, str(64 * 2**30))
+    no_compute(monkeypatch, E, "explorer_view")
+    ks, amps, phs = rows()
+    params = {"set": None, "overrides": {"solver.time_step": 1e-7}}  # 2e8 steps: about 3 minutes of one core
+    out, text = bounded(E.explorer_outputs, 1500, 200, ks, amps, phs, 20.0, [], [], "pi", [], params, run=True)
+    assert out["error"] and "dampersim simulate" in text
 
 
 @pytest.mark.parametrize("page", ["explorer", "segments"])
@@ -132,12 +175,13 @@ def test_explorer_waits_for_run_above_the_autostart_budget(pages, monkeypatch):
 
 def test_explorer_posted_junk_gets_notices(pages, monkeypatch):
     E = pages.explorer
-    no_compute(monkeypatch, E, "explorer_view")
     ks, amps, phs = rows()
     junk = {"set": "../../etc", "overrides": {"solver.time_step": [1, 2], "solver.duration": "1e400"}}
-    out, text = bounded(E.explorer_outputs, 1500, 200, ks, amps, phs, 1e9, [], [], "pi", [], junk,
-                        initial=True, autorun=False)
-    assert out["pending"] and "duration" in text
+    seen = recorder(monkeypatch, E, "explorer_view")
+    out, text = bounded(E.explorer_outputs, 1500, 200, ks, amps, phs, 1e9, [], [], "pi", [], junk, initial=True)
+    assert "duration" in text and "solver.time_step" in text
+    (system, state), = seen  # what would run is the safe default
+    assert state["duration"] == system.solver.duration and system.solver.time_step == pytest.approx(1 / 60000)
 
 
 # ------------------------------------------------------------------------ range lists and maps
@@ -152,7 +196,9 @@ def test_repeated_range_lists_are_refused_before_expansion(pages, page, key):
     lay, text = bounded(module.layout, **{key: short})
     notices = text_of(find(lay, f"{page}-link-notices"))
     assert "expands to 2499" in notices and "at most" in notices
-    assert find(lay, f"{page}-autorun").data is False
+    from dampersim.views.state import field
+
+    assert control_value(lay, f"{page}-{key}") == field(page, key).default  # the safe default is what runs
 
 
 def test_forty_million_point_map_starts_nothing(pages, monkeypatch):
@@ -161,7 +207,7 @@ def test_forty_million_point_map_starts_nothing(pages, monkeypatch):
     lay, text = bounded(M.layout, **link)
     notices = text_of(find(lay, "maps-link-notices"))
     assert "99934 torques" in notices and "3192 test points" in notices
-    assert find(lay, "maps-autorun").data is False
+    assert control_value(lay, "maps-torques") == "50:400:50"  # the default map (within autostart) replaces it
     no_compute(monkeypatch, M, "maps_view")
     ks, amps, phs = rows()
     values = [link["speeds"], link["torques"], ks, amps, phs, 2.6, 1.25, ["2"], 30, 200, 2]
