@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dampersim.discrepancy.campaign import MeasuredPoint, write_campaign
+from dampersim.discrepancy.campaign import MeasuredPoint
+from dampersim.discrepancy.campaign_write import write_campaign
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.errors import InputError
 from dampersim.units import rpm_to_rad_s

@@ -44,9 +44,8 @@ from dampersim.discrepancy.campaign import (
     KINDS,
     MeasuredPoint,
     check_point,
-    write_manifest,
-    write_point,
 )
+from dampersim.discrepancy.campaign_write import write_manifest, write_point
 from dampersim.errors import InputError
 from dampersim.rigdata import mapping, resample, segment
 from dampersim.rigdata.readers import open_recording, sniff_format

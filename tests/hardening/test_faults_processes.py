@@ -32,9 +32,21 @@ def _points(n, start=1000.0):
     return make_grid([rpm_to_rad_s(start + 37.0 * i) for i in range(n)], [150.0], orders=((2.0, 200.0, 0.0),))
 
 
-def _pool_children():
-    me = psutil.Process()
-    return [p for p in me.children(recursive=True) if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+def _pool_children(before=frozenset()):
+    """Live children of this process started after ``before`` (pids) was taken, without
+    multiprocessing's helpers (resource tracker, fork server) that earlier tests started."""
+    out = []
+    for p in psutil.Process().children(recursive=True):
+        try:
+            if p.pid in before or p.status() == psutil.STATUS_ZOMBIE:
+                continue
+            cmd = " ".join(p.cmdline())
+        except psutil.Error:
+            continue
+        if "resource_tracker" in cmd or "forkserver" in cmd:
+            continue
+        out.append(p)
+    return out
 
 
 @pytest.mark.slow
@@ -44,11 +56,12 @@ def test_killed_pool_worker_keeps_finished_points_and_names_the_lost_one(cache_d
     cache = ResultCache()
     done = []
     killed = threading.Event()
+    before = frozenset(p.pid for p in psutil.Process().children(recursive=True))
 
     def progress(n, total, from_cache):
         done.append(n)
         if n >= 2 and not killed.is_set():
-            kids = _pool_children()
+            kids = _pool_children(before)
             if kids:
                 os.kill(kids[0].pid, signal.SIGKILL)
                 killed.set()
@@ -69,7 +82,7 @@ def test_killed_pool_worker_keeps_finished_points_and_names_the_lost_one(cache_d
     rerun = run_sweep(system, points, executor="serial", duration=DURATION, window=WINDOW, cache=cache)
     assert rerun.from_cache >= finished - 1  # the progress count includes the point being written
     assert rerun.from_cache + rerun.computed == len(points)
-    assert len(_pool_children()) == 0, "a pool worker outlived its sweep"
+    assert len(_pool_children(before)) == 0, "a pool worker outlived its sweep"
 
 
 def _writer(cache_root, started):

@@ -18,6 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from dampersim.discrepancy import campaign as C
+from dampersim.discrepancy.campaign_write import write_campaign
 from dampersim.discrepancy.upload import UPLOAD_LIMITS
 from dampersim.errors import InputError, ParameterError
 from dampersim.parameters import default_parameters, io as pio
@@ -127,8 +128,8 @@ def folder(tmp_path_factory):
     """A campaign folder with two valid point files (Parquet and CSV); each example writes
     its own manifest.csv into it."""
     root = tmp_path_factory.mktemp("fuzz-campaign") / "c"
-    C.write_campaign(root, [point("p0")], name="c")
-    C.write_campaign(root, [point("p1", rpm=1300.0)], name="c", fmt="csv")
+    write_campaign(root, [point("p0")], name="c")
+    write_campaign(root, [point("p1", rpm=1300.0)], name="c", fmt="csv")
     (root / "manifest.csv").unlink()
     return root
 

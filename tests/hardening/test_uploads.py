@@ -32,7 +32,8 @@ import pytest
 import app  # noqa: F401  (registers the pages and their callbacks)
 from dampersim import views
 from dampersim.discrepancy import campaign as C, upload as UP
-from dampersim.discrepancy.campaign import MeasuredPoint, write_campaign
+from dampersim.discrepancy.campaign import MeasuredPoint
+from dampersim.discrepancy.campaign_write import write_campaign
 from dampersim.views.discrepancy import uploads_dir
 from dampersim.errors import InputError, ParameterError
 from dampersim.incidents import _PATH
@@ -437,14 +438,16 @@ SERVER_INPUTS = ("discrepancy-upload.contents", "discrepancy-import-upload.conte
 def test_no_server_callback_receives_the_raw_upload():
     """The browser posts a file only through the size check's store: no server callback
     takes an upload's contents as input or state (it would be posted whatever its size)."""
-    from dash._callback import GLOBAL_CALLBACK_LIST
+    import app
 
-    for cb in GLOBAL_CALLBACK_LIST:
+    app.app._setup_server()  # moves the pages' callbacks into the app's list (idempotent)
+    callbacks = app.app._callback_list
+    for cb in callbacks:
         if cb.get("clientside_function"):
             continue
         ids = [f"{d['id']}.{d['property']}" for d in cb.get("inputs", []) + cb.get("state", [])]
         assert not set(ids) & set(SERVER_INPUTS), cb["output"]
-    clientside = [cb for cb in GLOBAL_CALLBACK_LIST if cb.get("clientside_function")
+    clientside = [cb for cb in callbacks if cb.get("clientside_function")
                   and cb["inputs"][0]["id"] in ("discrepancy-upload", "discrepancy-import-upload", "parameters-upload")]
     assert len(clientside) == 3
 
