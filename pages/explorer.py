@@ -1,7 +1,8 @@
 """Explorer: one test point (speed, mean torque, excitation orders, segments, key parameters).
 
 URL keys: ``speed`` [rpm], ``torque`` [N m], ``orders`` ("2:300,4:100@90": order,
-amplitude [N m], phase [deg]), ``duration`` [s] and any dotted parameter name (SI values),
+amplitude [N m], phase [deg]), ``duration`` [s], ``repeat`` (repeatability runs, 2-32, off
+when absent) and any dotted parameter name (SI values),
 e.g. ``/explorer?speed=2100&torque=260&solver.outer_segments=24``.
 """
 
@@ -44,6 +45,10 @@ def layout(**query):
                                               {-500: "-500", 0: "0", 300: "300", 600: "600", 1000: "1000"}), "N m", cid="explorer-torque"),
             W.control("Simulated time", W.number("explorer-duration", state["duration"]), "s",
                       hint="Analysis window: the last 1.25 s (shorter records: after the 0.6 s start-up).", cid="explorer-duration"),
+            W.control("Repeatability runs", W.number("explorer-repeat", state["repeat"], step=1, placeholder="off"), "runs",
+                      hint="Off by default. K runs (2-32) with the input amplitudes scaled by 1 + i·1e-9: the magnification "
+                           "gets the min-max of the K runs as a band and the table the spread per order. Costs K runs.",
+                      cid="explorer-repeat"),
             W.run_button(PAGE),
         ]),
         W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
@@ -99,15 +104,17 @@ def _kpis(view):
     ])
 
 
-def _orders_table(rows):
+def _orders_table(rows, runs=None):
     data = [{"order": f"{r['order']:g}", "f": f"{r['frequency_hz']:.1f}", "in": W.fmt(r["input_nm"], 4), "out": W.fmt(r["output_nm"], 4),
-             "mr": W.fmt(r["mr"], 4), "excited": r["excited"]} for r in rows]
-    return W.table([("order", "Order"), ("f", "Frequency [Hz]"), ("in", "Input [N m]"), ("out", "Output [N m]"), ("mr", "MR [-]")],
-                   data, cid="explorer-mr-table", highlight=lambda r: r["excited"])
+             "mr": W.fmt(r["mr"], 4), "spread": W.fmt(r.get("spread_pct"), 3), "excited": r["excited"]} for r in rows]
+    cols = [("order", "Order"), ("f", "Frequency [Hz]"), ("in", "Input [N m]"), ("out", "Output [N m]"), ("mr", "MR [-]")]
+    if runs:
+        cols.append(("spread", f"Spread of {runs} runs [%]"))
+    return W.table(cols, data, cid="explorer-mr-table", highlight=lambda r: r["excited"])
 
 
 def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
-                     run=False, initial=False):
+                     run=False, initial=False, repeat=None):
     """Everything the Explorer shows for the current controls (plain function, testable).
 
     Returns a dict: figures {name: figure}, table, kpis, notices, search, params, error,
@@ -117,6 +124,8 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     :data:`dampersim.costs.FOREGROUND_WORK`. A point above the autostart budget computes
     only on ``run``: ``pending`` is True and a notice gives the estimate. A link's refused
     values have already fallen back to their defaults (the URL contract), which run.
+    ``repeat`` (the "Repeatability runs" box; None = off) runs the point K times, so the
+    cost checked is K runs.
     """
     notices = []
     orders_text, notes = orders_text_from_rows(ks, amps, phases)
@@ -127,7 +136,8 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     names += list(SWITCHES) + ["motor.mode"]
     values += [n in sw for n in SWITCHES] + [motor or "pi"]
     params, system = control_params(base_params, names, values, notices)
-    state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration}, params)
+    state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
+                                             "repeat": repeat}, params)
     notices += more
     try:
         if load_view(explorer_key(system, state)) is None:
@@ -147,7 +157,7 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
         notices.append(notice(f"The test point could not be simulated: {msg}. The previous results are kept.", "error"))
         return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
                 "error": msg, "state": state, "pending": False}
-    return {"figures": view["figures"], "table": _orders_table(view["orders"]), "kpis": _kpis(view), "notices": notices,
+    return {"figures": view["figures"], "table": _orders_table(view["orders"], state.get("repeat")), "kpis": _kpis(view), "notices": notices,
             "search": to_query(PAGE, state), "params": state["params"], "error": None, "state": state, "view": view,
             "pending": False}
 
@@ -173,13 +183,14 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     State("explorer-base-params", "data"),
     State("explorer-last-good", "data"),
     Input("explorer-run", "n_clicks"),
+    Input("explorer-repeat", "value"),
     prevent_initial_call="initial_duplicate",
 )
 def update_explorer(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params, last_good,
-                    run_clicks=None):
+                    run_clicks=None, repeat=None):
     initial, run = W.triggers("explorer-run.n_clicks")
     out = explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
-                           run=run, initial=initial)
+                           run=run, initial=initial, repeat=repeat)
     notices = W.render_notices(out["notices"])
     hidden, shown = {"display": "none"}, {"display": "block"}
     if out.get("pending"):

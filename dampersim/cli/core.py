@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 
 import numpy as np
@@ -34,44 +35,76 @@ def _speed(rpm: float) -> float:
     return rpm_to_rad_s(rpm)
 
 
+def _repeat_runs(raw) -> int | None:
+    """``--repeatability K``: None when not given, else K as an int from 2 to 32."""
+    from dampersim.analysis.repeatability import MAX_RUNS, MIN_RUNS
+
+    if raw is None:
+        return None
+    text = str(raw).strip()
+    if not (re.fullmatch(r"[0-9]{1,3}", text) and MIN_RUNS <= int(text) <= MAX_RUNS):
+        raise InputError(f"--repeatability {raw!r}: accepted is a whole number of runs from {MIN_RUNS} to {MAX_RUNS}")
+    return int(text)
+
+
 def cmd_simulate(args) -> int:
     """Simulate one test point; print order amplitudes and magnification, optionally
-    write the result (Parquet, :meth:`~dampersim.results.SimulationResult.save`)."""
+    write the result (Parquet, :meth:`~dampersim.results.SimulationResult.save`).
+
+    With ``--repeatability K`` the point runs K times, run i with every input order
+    amplitude scaled by (1 + i·1e-9) (:func:`dampersim.analysis.repeatability.repeatability`);
+    run 0 is reported as without the option, plus the spread of each output order over the
+    K runs [%] (``repeatability_pct`` in JSON, null where the order's median output is below
+    0.1 % of the largest)."""
     from dampersim.analysis.metrics import magnification_ratio
     from dampersim.excitation import OrderSum, parse_orders
     from dampersim.simulation import simulate
 
+    runs = _repeat_runs(getattr(args, "repeatability", None))
     system = parameters_from_args(args)
     orders = parse_orders(args.orders)
     if not math.isfinite(args.torque) or abs(args.torque) > 5000:
         raise InputError(f"--torque {args.torque!r} N m: accepted is a mean torque within +-5000 N m")
     ex = OrderSum(speed=_speed(args.speed), mean_torque=args.torque, orders=orders)
     out = prepare_output(args.out, "file") if args.out else None
-    res = simulate(system, ex, duration=args.duration, record_segments=False)
+    spread = None
+    if runs is None:
+        res = simulate(system, ex, duration=args.duration, record_segments=False)
+    else:
+        from dampersim.analysis.repeatability import repeatability
+
+        rep = repeatability(system, ex, runs, ORDERS, duration=args.duration)
+        res, spread = rep.result, rep.spread_pct
     a_in, a_out = res.order_amplitudes(ORDERS)
     # an order without input (below 0.1 % of the largest) has no meaningful ratio
     mr = magnification_ratio(a_in, a_out, min_input=max(1e-3 * float(np.max(a_in)), 1e-6))
     if out:
         res.save(out)
     if args.json:
-        print(
-            json.dumps(
-                {
-                    "orders": list(ORDERS),
-                    "input_amplitude_nm": jsonable(np.asarray(a_in, dtype=float)),
-                    "output_amplitude_nm": jsonable(np.asarray(a_out, dtype=float)),
-                    "magnification": jsonable(np.asarray(mr, dtype=float)),
-                    "wall_time_s": res.wall_time,
-                }
-            )
-        )
+        d = {
+            "orders": list(ORDERS),
+            "input_amplitude_nm": jsonable(np.asarray(a_in, dtype=float)),
+            "output_amplitude_nm": jsonable(np.asarray(a_out, dtype=float)),
+            "magnification": jsonable(np.asarray(mr, dtype=float)),
+            "wall_time_s": res.wall_time,
+        }
+        if spread is not None:
+            d["repeatability_pct"] = list(spread)
+        print(json.dumps(d))
     else:
         print(f"{system.name}: {args.speed:g} rpm, {args.torque:g} N m mean, {res.t[-1] + 1 / res.sample_rate:.2f} s")
-        print(f"{'order':>5} {'input [N m]':>12} {'output [N m]':>13} {'MR [-]':>8}")
-        for k, ai, ao, m in zip(ORDERS, a_in, a_out, mr):
+        head = f"{'order':>5} {'input [N m]':>12} {'output [N m]':>13} {'MR [-]':>8}"
+        print(head + (f" {f'spread of {runs} runs [%]':>22}" if spread is not None else ""))
+        for i, (k, ai, ao, m) in enumerate(zip(ORDERS, a_in, a_out, mr)):
             ms = f"{m:8.3f}" if math.isfinite(m) else f"{'-':>8}"
-            print(f"{k:>5} {ai:12.3f} {ao:13.3f} {ms}")
-        print(f"simulation wall time {res.wall_time:.3f} s")
+            line = f"{k:>5} {ai:12.3f} {ao:13.3f} {ms}"
+            if spread is not None:
+                line += f" {spread[i]:22.3g}" if spread[i] is not None else f" {'-':>22}"
+            print(line)
+        if spread is not None:
+            print(f"spread: 100 (max - min) / median of each output order over {runs} runs with the input amplitudes "
+                  f"scaled by 1 + i 1e-9; - where the order is below 0.1 % of the largest")
+        print(f"simulation wall time {res.wall_time:.3f} s" + (" (run 0)" if spread is not None else ""))
     return 0
 
 
@@ -130,6 +163,9 @@ def add_parsers(subparsers) -> None:
     add_parameter_options(s, shorthands=True)
     s.add_argument("--output-motor", choices=("pi", "held"), help="output motor control")
     s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.add_argument("--repeatability", metavar="K", default=None,
+                   help="run K times (2-32) with the input amplitudes scaled by 1 + i 1e-9 and report the spread "
+                        "of each output order [%%] (repeatability_pct in JSON)")
     s.set_defaults(func=cmd_simulate)
 
     m = subparsers.add_parser("modes", help="linearised model (M, C, K), natural frequencies, mode shapes")

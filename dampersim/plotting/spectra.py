@@ -89,13 +89,21 @@ def windowed_spectrum_figure(res, seconds: float) -> go.Figure:
     return fig
 
 
-def mr_figure(rows, title="Magnification ratio per order"):
+def mr_figure(rows, title="Magnification ratio per order", runs: int | None = None):
     """MR [-] per order on a log axis with MR = 1 marked (excited orders dark); orders
-    without input (not excited) have no ratio and are left out."""
+    without input (not excited) have no ratio and are left out. Rows with ``mr_range``
+    ([min, max] over ``runs`` repeatability runs) get it as an error bar around the bar, and
+    their ``spread_pct`` [%] in the hover."""
     rows = [r for r in rows if r["mr"] is not None and r["mr"] > 0]
     fig = go.Figure()
+    band = any(r.get("mr_range") for r in rows)
     if rows:
         labels = [f"{number_text(r['order'])}" for r in rows]
+        extra = {}
+        if band:
+            extra["error_y"] = dict(type="data", symmetric=False, color="#333333", thickness=1.5, width=8,
+                                    array=[(r["mr_range"][1] - r["mr"]) if r.get("mr_range") else 0.0 for r in rows],
+                                    arrayminus=[(r["mr"] - r["mr_range"][0]) if r.get("mr_range") else 0.0 for r in rows])
         fig.add_trace(go.Bar(
             x=labels,
             y=[r["mr"] for r in rows],
@@ -103,13 +111,16 @@ def mr_figure(rows, title="Magnification ratio per order"):
             textposition="outside",
             width=0.45 if len(rows) > 1 else 0.3,
             marker=dict(color=[theme.COLOURWAY[0] if r["excited"] else "#9AB8D3" for r in rows]),
-            customdata=[[r["input_nm"], r["output_nm"], r["frequency_hz"]] for r in rows],
+            customdata=[[r["input_nm"], r["output_nm"], r["frequency_hz"],
+                         "—" if r.get("spread_pct") is None else f"{r['spread_pct']:.3g} %"] for r in rows],
             hovertemplate="order %{x}<br>MR %{y:.4g}<br>input %{customdata[0]:.3g} N m<br>"
-                          "output %{customdata[1]:.3g} N m<br>%{customdata[2]:.1f} Hz<extra></extra>",
+                          "output %{customdata[1]:.3g} N m<br>%{customdata[2]:.1f} Hz"
+                          + ("<br>spread %{customdata[3]}" if band else "") + "<extra></extra>",
             name="MR",
+            **extra,
         ))
-        lo = min(r["mr"] for r in rows)
-        hi = max(r["mr"] for r in rows)
+        lo = min(r["mr_range"][0] if r.get("mr_range") else r["mr"] for r in rows)
+        hi = max(r["mr_range"][1] if r.get("mr_range") else r["mr"] for r in rows)
         fig.add_hline(y=1.0, line=dict(color="#D55E00", dash="dash", width=1.5),
                       annotation_text="MR = 1", annotation_position="top left")
         fig.update_yaxes(type="log", dtick=1, exponentformat="power",
@@ -119,6 +130,10 @@ def mr_figure(rows, title="Magnification ratio per order"):
     fig.update_xaxes(title_text=theme.axis_title("Engine order", "-"), type="category")
     fig.update_yaxes(title_text=theme.axis_title("Magnification ratio", "-"))
     fig.update_layout(showlegend=False, margin=dict(t=50, b=50))
+    if band:
+        fig.add_annotation(text=f"bars: min-max of {runs} runs, input amplitudes x (1 + i·1e-9)" if runs
+                           else "bars: min-max over the repeatability runs", showarrow=False,
+                           xref="paper", yref="paper", x=1.0, y=1.0, xanchor="right", yanchor="bottom", font=dict(size=11))
     return theme.apply(fig, title)
 
 

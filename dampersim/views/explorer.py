@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from dampersim.analysis.order_table import order_table
+from dampersim.analysis.repeatability import repeatability
 from dampersim.plotting import (
     energy_balance_figure,
     mr_figure,
@@ -47,6 +48,25 @@ def _energy_summary(result) -> dict:
     }
 
 
+def with_spread(rows, rep) -> list:
+    """Order rows of :func:`order_table` with the spread of a
+    :class:`~dampersim.analysis.repeatability.Repeatability` over the same orders:
+    ``spread_pct`` [%] (None where the order's output is below 0.1 % of the largest),
+    ``output_range_nm`` [min, max] [N m] and ``mr_range`` [min, max] [-] (None without a
+    ratio) over the K runs."""
+    lo, hi = rep.output_range_nm()
+    out = []
+    for j, r in enumerate(rows):
+        r = dict(r)
+        r["spread_pct"] = rep.spread_pct[j]
+        r["output_range_nm"] = [float(lo[j]), float(hi[j])]
+        mr = r.get("mr")
+        ok = mr is not None and r["output_nm"] > 0 and rep.spread_pct[j] is not None
+        r["mr_range"] = [mr * float(lo[j]) / r["output_nm"], mr * float(hi[j]) / r["output_nm"]] if ok else None
+        out.append(r)
+    return out
+
+
 def _explorer_key(system, state, **_):
     return view_key("explorer", system, state, module=__name__)
 
@@ -62,7 +82,10 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
     with hardstop limits and the energy balance.
 
     state: from :func:`dampersim.views.state.parse_query` ("explorer"): speed [rpm], torque
-    [N m], orders ("2:300,4:100@90", phase in deg), duration [s]. Returns a dict with
+    [N m], orders ("2:300,4:100@90", phase in deg), duration [s], repeat (None or K runs:
+    the point runs K times with the input amplitudes scaled by 1 + i·1e-9 and each order
+    row gets ``spread_pct`` [%], ``output_range_nm`` and ``mr_range`` over the K runs,
+    :func:`with_spread`; the figures and the rest show run 0). Returns a dict with
     ``figures`` (traces, spectrum, mr, windup, energy), ``orders`` (rows of
     :func:`dampersim.analysis.order_table.order_table`), ``summary`` and ``key``;
     ``from_cache`` tells whether it came from the view cache.
@@ -75,13 +98,17 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
     seconds = analysis_seconds(duration, ex.steady_start)
     excited = [k for k, a, _ in ex.orders if a > 0]
     rows = order_table(res, excited, seconds)
+    runs = state.get("repeat")
+    if runs:
+        rep = repeatability(system, ex, int(runs), [r["order"] for r in rows], seconds, duration=duration, run0=res)
+        rows = with_spread(rows, rep)
     speed_rpm = float(state["speed"])
     traces = recent_traces_figure(res, duration, max_points=TRACE_POINTS,
                                   title=f"Torque at {number_text(round(speed_rpm, 1))} rpm, {number_text(state['torque'])} N m mean")
     figures = {
         "traces": traces.to_dict(),
         "spectrum": windowed_spectrum_figure(res, seconds).to_dict(),
-        "mr": mr_figure(rows).to_dict(),
+        "mr": mr_figure(rows, runs=int(runs) if runs else None).to_dict(),
         "windup": windup_figure(res, system, max_points=TRACE_POINTS).to_dict(),
         "energy": energy_balance_figure(res, max_points=ENERGY_POINTS).to_dict(),
     }
@@ -100,10 +127,11 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
         "hardstop_outer_share": float(np.mean(res.hardstop_outer[w] != 0.0)),
         "hardstop_inner_share": float(np.mean(res.hardstop_inner[w] != 0.0)),
         "kernel_time_s": float(res.wall_time),
+        "repeat": int(runs) if runs else None,
         **_energy_summary(res),
     }
     summary["compute_time_s"] = time.perf_counter() - t0
     return {"kind": "explorer", "figures": figures, "orders": rows, "summary": summary}
 
 
-__all__ = ["TRACE_POINTS", "ENERGY_POINTS", "analysis_seconds", "explorer_key", "explorer_view"]
+__all__ = ["TRACE_POINTS", "ENERGY_POINTS", "analysis_seconds", "explorer_key", "explorer_view", "with_spread"]

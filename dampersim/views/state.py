@@ -49,7 +49,7 @@ MAX_VALUE_CHARS = 512
 class Field:
     """One page-state key.
 
-    kind: "float", "int", "bool", "choice", "orders" (ORDER:AMPLITUDE[@PHASE_DEG] items),
+    kind: "float", "int", "runs" (off = None, or a whole number lo-hi), "bool", "choice", "orders" (ORDER:AMPLITUDE[@PHASE_DEG] items),
     "speeds" (rpm value/list/START:STOP:STEP), "torques" (N m value/list/range),
     "order_list" (engine orders "2,4"); lo/hi: accepted range (inclusive) in ``unit``;
     default None means "resolved from the parameter set" (``duration``).
@@ -69,6 +69,8 @@ class Field:
         u = f" {self.unit}" if self.unit else ""
         if self.kind in ("float", "int"):
             return f"a number from {number_text(self.lo)} to {number_text(self.hi)}{u}"
+        if self.kind == "runs":
+            return f"off (no value) or a whole number from {number_text(self.lo)} to {number_text(self.hi)}{u}"
         if self.kind == "bool":
             return "true or false (1/0)"
         if self.kind == "choice":
@@ -95,6 +97,8 @@ PAGES: dict[str, tuple[Field, ...]] = {
         Field("torque", "Mean torque", "float", 200.0, "N m", -500.0, 1000.0, doc="mean input torque"),
         Field("orders", "Excitation orders", "orders", "2:300", doc="engine orders with amplitude [N m] and phase [deg]"),
         Field("duration", "Simulated time", "float", None, "s", 1.0, 20.0, doc="default: the parameter set's solver.duration"),
+        Field("repeat", "Repeatability runs", "runs", None, "runs", 2, 32,
+              doc="off (default) or K runs with the input amplitudes scaled by 1 + i·1e-9: the spread of each order"),
     ),
     "colourmap": (
         Field("speeds", "Speeds", "speeds", "900:2800:50", "rpm", 300.0, 6000.0, doc="speed sweep (the thesis steps 10 rpm)"),
@@ -176,6 +180,12 @@ def _parse_int(f: Field, raw):
     if not v.is_integer():
         raise ValueError("is not a whole number")
     return int(v)
+
+
+def _parse_runs(f: Field, raw):
+    if raw is None or (isinstance(raw, str) and raw.strip().lower() in ("", "off")):
+        return None
+    return _parse_int(f, raw)
 
 
 def _parse_bool(f: Field, raw):
@@ -329,6 +339,7 @@ def _parse_order_list(f: Field, raw):
 _PARSERS = {
     "float": _parse_float,
     "int": _parse_int,
+    "runs": _parse_runs,
     "bool": _parse_bool,
     "choice": _parse_choice,
     "orders": _parse_orders,
@@ -345,7 +356,7 @@ def parse_field(f: Field, raw):
 
 def _display(f: Field, value) -> str:
     if value is None:
-        return "(none)"
+        return "off" if f.kind == "runs" else "(none)"
     u = f" {f.unit}" if f.unit and f.kind in ("float", "int") else ""
     return f"{number_text(value)}{u}"
 
@@ -526,7 +537,12 @@ def state_cost(page: str, system, state: dict, n_points: int | None = None):
     Maps: ``n_points`` test points when given, e.g. only those not in the cache), or the
     hysteresis ramps (one protocol run per speed)."""
     if page in ("explorer", "segments"):
-        return costs.point_cost(system, float(state["duration"]), record_segments=(page == "segments"))
+        one = costs.point_cost(system, float(state["duration"]), record_segments=(page == "segments"))
+        k = state.get("repeat") if page == "explorer" else None
+        if not k:
+            return one
+        # K runs one after the other; run 0 is kept while the others run
+        return costs.Cost(k * one.work, 2 * one.bytes, f"this test point run {k} times (repeatability)")
     if page in ("colourmap", "maps"):
         n = count_values(state["speeds"], "speeds", "rpm")
         if page == "maps":
