@@ -18,18 +18,18 @@ import time
 import numpy as np
 
 from dampersim.jsonsafe import jsonable
+from dampersim import costs
 from dampersim.studies._common import (
     Progress,
     amp_of,
-    cached_runs,
     check_executor,
     finish,
     mr_of,
-    mr_sweep,
     pct,
     point,
     warn_speeds,
 )
+from dampersim.studies._plan import Plan, RunsStep, SweepStep, execute, plan_cost
 from dampersim.units import rad_s_to_rpm, rpm_to_rad_s
 from dampersim.analysis.maps import magnification_map, predict_along_curve
 from dampersim.errors import InputError
@@ -51,13 +51,8 @@ def _default(system):
 
 
 # ------------------------------------------------------------------ §7.1.1 order rule
-def order_rule(system=None, quick=False, executor="processes", progress=None, cancel=None):
-    """Replicate a fired-engine signal with its 1, 2, 3, ... dominant orders and report
-    each primary order's MR change against the full signal ([thesis] §7.1.1, Fig. 7.3)."""
-
-    t0 = time.perf_counter()
-    check_executor(executor)
-    system = _default(system)
+def _order_rule_plan(system, quick) -> Plan:
+    """One sweep: at each speed the full signal, its repeatability twin and the replicas."""
     speeds = (2000.0,) if quick else (1200.0, 2000.0, 2800.0)
     max_n = 3 if quick else 5
     curve = default_torque_curve()
@@ -78,8 +73,20 @@ def order_rule(system=None, quick=False, executor="processes", progress=None, ca
             sub_idx.append(len(points))
             points.append(point(rpm, tq, ranked[:n]))
         cases.append((rpm, tq, full, ranked, base_idx, sub_idx))
-    prog = Progress(progress, len(points))
-    table = mr_sweep(system, points, prog, executor, cancel)
+    return Plan([SweepStep(system, tuple(points))], speeds=speeds, max_n=max_n, cases=cases)
+
+
+def order_rule(system=None, quick=False, executor="processes", progress=None, cancel=None):
+    """Replicate a fired-engine signal with its 1, 2, 3, ... dominant orders and report
+    each primary order's MR change against the full signal ([thesis] §7.1.1, Fig. 7.3)."""
+
+    t0 = time.perf_counter()
+    check_executor(executor)
+    system = _default(system)
+    plan = _order_rule_plan(system, quick)
+    speeds, max_n, cases = plan.speeds, plan.max_n, plan.cases
+    prog = Progress(progress, plan.total)
+    (table,) = execute(plan, prog, executor, cancel)
     out = []
     worst = {n: 0.0 for n in range(1, max_n + 1)}
     worst_scatter = 0.0
@@ -117,12 +124,8 @@ def order_rule(system=None, quick=False, executor="processes", progress=None, ca
 
 
 # -------------------------------------------------------------- §7.1.1 additional orders
-def additional_orders(system=None, quick=False, executor="processes", progress=None, cancel=None):
-    """MR change of a dominant 4th order (300 N m) as an extra lower (2nd) or higher (6th)
-    order grows, below and above the outer knee ([thesis] §7.1.1, Fig. 7.7-7.8)."""
-    t0 = time.perf_counter()
-    check_executor(executor)
-    system = _default(system)
+def _additional_orders_plan(system, quick) -> Plan:
+    """One sweep: the dominant order alone and with each extra order at each ratio."""
     rpm, dom, amp = 2000.0, 4.0, 300.0
     ratios = (0.0, 0.2, 0.6) if quick else (0.0, 0.1, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0)
     torques = (150.0,) if quick else (150.0, 400.0)
@@ -134,8 +137,21 @@ def additional_orders(system=None, quick=False, executor="processes", progress=N
                 orders = [(dom, amp, 0.0)] + ([(k, r * amp, 0.0)] if r > 0 else [])
                 index[(tq, side, r)] = len(points)
                 points.append(point(rpm, tq, orders))
-    prog = Progress(progress, len(points))
-    table = mr_sweep(system, points, prog, executor, cancel)
+    return Plan([SweepStep(system, tuple(points))], rpm=rpm, dom=dom, amp=amp, ratios=ratios, torques=torques,
+                extras=extras, index=index)
+
+
+def additional_orders(system=None, quick=False, executor="processes", progress=None, cancel=None):
+    """MR change of a dominant 4th order (300 N m) as an extra lower (2nd) or higher (6th)
+    order grows, below and above the outer knee ([thesis] §7.1.1, Fig. 7.7-7.8)."""
+    t0 = time.perf_counter()
+    check_executor(executor)
+    system = _default(system)
+    plan = _additional_orders_plan(system, quick)
+    rpm, dom, amp, ratios, torques, extras, index = (plan.rpm, plan.dom, plan.amp, plan.ratios, plan.torques,
+                                                     plan.extras, plan.index)
+    prog = Progress(progress, plan.total)
+    (table,) = execute(plan, prog, executor, cancel)
     res = []
     for tq in torques:
         for side, k in extras:
@@ -170,13 +186,8 @@ SENSITIVITY_PARAMETERS = (
 )
 
 
-def sufficient_excitation(system=None, quick=False, executor="processes", progress=None, cancel=None):
-    """Impact of +-20 % parameter changes on the output torque against the excitation
-    magnitude (40-600 N m), below (150 N m) and above (400 N m) the knee ([thesis] §7.1.2)."""
-
-    t0 = time.perf_counter()
-    check_executor(executor)
-    system = _default(system)
+def _sufficient_excitation_plan(system, quick) -> Plan:
+    """One sweep of the same points per variant: the baseline and each parameter +-20 %."""
     mags = (100.0, 300.0) if quick else (40.0, 100.0, 200.0, 300.0, 450.0, 600.0)
     freq_pts = ((1500.0, 2.0), (1500.0, 4.0)) if quick else ((1000.0, 2.0), (2500.0, 2.0), (1000.0, 4.0), (2500.0, 4.0))
     torques = (150.0,) if quick else (150.0, 400.0)
@@ -191,11 +202,23 @@ def sufficient_excitation(system=None, quick=False, executor="processes", progre
         for a in mags:
             for rpm, k in freq_pts:
                 grid[(tq, a, rpm, k)] = point(rpm, tq, [(k, a, 0.0)])
-    pts = list(grid.values())
-    prog = Progress(progress, len(pts) * len(variants))
-    tables = {}
-    for name, d, sysv in variants:
-        tables[(name, d)] = mr_sweep(sysv, pts, prog, executor, cancel)
+    pts = tuple(grid.values())
+    return Plan([SweepStep(sysv, pts) for _name, _d, sysv in variants], mags=mags, freq_pts=freq_pts,
+                torques=torques, params=params, variants=variants, grid=grid)
+
+
+def sufficient_excitation(system=None, quick=False, executor="processes", progress=None, cancel=None):
+    """Impact of +-20 % parameter changes on the output torque against the excitation
+    magnitude (40-600 N m), below (150 N m) and above (400 N m) the knee ([thesis] §7.1.2)."""
+
+    t0 = time.perf_counter()
+    check_executor(executor)
+    system = _default(system)
+    plan = _sufficient_excitation_plan(system, quick)
+    mags, freq_pts, torques, params, grid = plan.mags, plan.freq_pts, plan.torques, plan.params, plan.grid
+    prog = Progress(progress, plan.total)
+    outs = execute(plan, prog, executor, cancel)
+    tables = {(name, d): tab for (name, d, _sysv), tab in zip(plan.variants, outs)}
     keys = list(grid.keys())
     base = tables[("baseline", 0.0)]
     res = []
@@ -252,14 +275,8 @@ def table_7_1():
     return pts
 
 
-def mapping(system=None, quick=False, executor="processes", progress=None, cancel=None):
-    """Efficient mapping procedure (Table 7.1) at 100 and 300 N m amplitude over 100-500 N m
-    mean torque, its MR maps, and their prediction of a fired-engine WOT campaign
-    ([thesis] §7.1.3, Fig. 7.14-7.16)."""
-
-    t0 = time.perf_counter()
-    check_executor(executor)
-    system = _default(system)
+def _mapping_plan(system, quick) -> Plan:
+    """One sweep per amplitude over the Table 7.1 points x mean torques, then the campaign."""
     tpts = [(1.0, 1200.0), (2.0, 1500.0), (4.0, 1800.0), (4.0, 2700.0), (6.0, 2400.0)] if quick else table_7_1()
     torques = (100.0, 300.0, 500.0) if quick else tuple(float(t) for t in range(100, 501, 25))
     amps = (100.0, 300.0)
@@ -268,17 +285,33 @@ def mapping(system=None, quick=False, executor="processes", progress=None, cance
     w_c, tq_c = curve.sample(n_curve)
     camp = [point(float(rad_s_to_rpm(w)), float(t), [o for o in engine_orders(float(w), float(t)) if o[1] >= 0.5])
             for w, t in zip(w_c, tq_c)]
-    total = len(tpts) * len(torques) * len(amps) + len(camp)
-    prog = Progress(progress, total)
+    pts_by_amp = {a: tuple(point(rpm, tq, [(k, a, 0.0)]) for tq in torques for k, rpm in tpts) for a in amps}
+    steps = [SweepStep(system, pts_by_amp[a]) for a in amps] + [SweepStep(system, tuple(camp))]
+    return Plan(steps, tpts=tpts, torques=torques, amps=amps, curve=curve, n_curve=n_curve, w_c=w_c, tq_c=tq_c,
+                camp=camp, pts_by_amp=pts_by_amp)
+
+
+def mapping(system=None, quick=False, executor="processes", progress=None, cancel=None):
+    """Efficient mapping procedure (Table 7.1) at 100 and 300 N m amplitude over 100-500 N m
+    mean torque, its MR maps, and their prediction of a fired-engine WOT campaign
+    ([thesis] §7.1.3, Fig. 7.14-7.16)."""
+
+    t0 = time.perf_counter()
+    check_executor(executor)
+    system = _default(system)
+    plan = _mapping_plan(system, quick)
+    tpts, torques, amps, curve, n_curve = plan.tpts, plan.torques, plan.amps, plan.curve, plan.n_curve
+    w_c, tq_c, camp = plan.w_c, plan.tq_c, plan.camp
+    prog = Progress(progress, plan.total)
+    outs = execute(plan, prog, executor, cancel)
     maps, tables = {}, {}
-    for a in amps:
-        pts = [point(rpm, tq, [(k, a, 0.0)]) for tq in torques for k, rpm in tpts]
-        tab = mr_sweep(system, pts, prog, executor, cancel)
+    for a, tab in zip(amps, outs):
+        pts = plan.pts_by_amp[a]
         tab = tab[tab.apply(lambda r: abs(r["order"] - pts[int(r["point"])].orders[0][0]) < 1e-9, axis=1)]
         tables[a] = tab
         maps[a] = magnification_map(tab, frequency_range_hz=(20.0, 300.0), frequency_step_hz=5.0,
                                     torque_range_nm=(torques[0], torques[-1]), torque_step_nm=25.0)
-    ctab = mr_sweep(system, camp, prog, executor, cancel)
+    ctab = outs[len(amps)]
     pred = {}
     summary = {}
     for k in PRIMARY:
@@ -315,12 +348,8 @@ def mapping(system=None, quick=False, executor="processes", progress=None, cance
 
 
 # ------------------------------------------------------------ §7.2 poor performance
-def poor_performance(system=None, quick=False, executor="processes", progress=None, cancel=None):
-    """MR at low frequency (8-80 Hz), low amplitude (2-30 N m) and high frequency above
-    the knee (140-400 Hz) ([thesis] §7.2, Fig. 7.17-7.21)."""
-    t0 = time.perf_counter()
-    check_executor(executor)
-    system = _default(system)
+def _poor_performance_plan(system, quick) -> Plan:
+    """One sweep over the three bands' points (only those inside each band's frequencies)."""
     if quick:
         low = dict(speeds=(500.0, 1000.0), orders=(1.0, 4.0), amps=(300.0,), torques=(100.0,))
         small = dict(speeds=(1200.0,), orders=(1.0, 4.0), amps=(5.0, 30.0), torques=(150.0,))
@@ -346,9 +375,20 @@ def poor_performance(system=None, quick=False, executor="processes", progress=No
                             lst.append((tq, a, rpm, k, f, len(allpts)))
                             allpts.append(point(rpm, tq, [(k, a, 0.0)]))
         groups[name] = lst
-    prog = Progress(progress, len(allpts))
-    warn_speeds([p.speed_rpm for p in allpts], prog)
-    table = mr_sweep(system, allpts, prog, executor, cancel)
+    return Plan([SweepStep(system, tuple(allpts))], low=low, small=small, high=high, groups=groups, allpts=allpts)
+
+
+def poor_performance(system=None, quick=False, executor="processes", progress=None, cancel=None):
+    """MR at low frequency (8-80 Hz), low amplitude (2-30 N m) and high frequency above
+    the knee (140-400 Hz) ([thesis] §7.2, Fig. 7.17-7.21)."""
+    t0 = time.perf_counter()
+    check_executor(executor)
+    system = _default(system)
+    plan = _poor_performance_plan(system, quick)
+    low, small, high, groups = plan.low, plan.small, plan.high, plan.groups
+    prog = Progress(progress, plan.total)
+    warn_speeds([p.speed_rpm for p in plan.allpts], prog)
+    (table,) = execute(plan, prog, executor, cancel)
     res = {}
     for name, lst in groups.items():
         res[name] = [{"mean_torque_nm": tq, "amplitude_nm": a, "speed_rpm": rpm, "order": k, "frequency_hz": f,
@@ -406,14 +446,8 @@ def _stiffness_at_angles(runs, speeds):
     return at
 
 
-def speed_stiffness(system=None, quick=False, executor="processes", progress=None, cancel=None):
-    """Outer-set dynamic stiffness over speed (500-3000 rpm) and vibration angle (slow
-    sine, 150 N m mean), with segment motion at ~5 and ~30 deg ([thesis] §7.3.2,
-    Fig. 7.27-7.30)."""
-
-    t0 = time.perf_counter()
-    check_executor(executor)
-    system = _default(system)
+def _speed_stiffness_plan(system, quick) -> Plan:
+    """Cached slow-sine runs of 4 s: every speed x frequency x amplitude."""
     speeds = (500.0, 3000.0) if quick else tuple(float(r) for r in range(500, 3001, 250))
     freqs = (2.0,) if quick else (2.0, 5.0)
     amps = (20.0, 50.0, 100.0, 150.0) if quick else (20.0, 35.0, 50.0, 75.0, 100.0, 150.0)
@@ -426,8 +460,22 @@ def speed_stiffness(system=None, quick=False, executor="processes", progress=Non
                               mean_ramp=0.5, amplitude_ramp=0.5)
                 jobs.append((system, ex, duration))
                 keys.append((rpm, f, a))
-    prog = Progress(progress, len(jobs))
-    out = cached_runs("speed-stiffness-v2", _stiffness_run, jobs, prog, parallel=(executor == "processes"), cancel=cancel)
+    return Plan([RunsStep("speed-stiffness-v2", _stiffness_run, tuple(jobs))], speeds=speeds, freqs=freqs, amps=amps,
+                duration=duration, keys=keys)
+
+
+def speed_stiffness(system=None, quick=False, executor="processes", progress=None, cancel=None):
+    """Outer-set dynamic stiffness over speed (500-3000 rpm) and vibration angle (slow
+    sine, 150 N m mean), with segment motion at ~5 and ~30 deg ([thesis] §7.3.2,
+    Fig. 7.27-7.30)."""
+
+    t0 = time.perf_counter()
+    check_executor(executor)
+    system = _default(system)
+    plan = _speed_stiffness_plan(system, quick)
+    speeds, freqs, amps, duration, keys = plan.speeds, plan.freqs, plan.amps, plan.duration, plan.keys
+    prog = Progress(progress, plan.total)
+    (out,) = execute(plan, prog, executor, cancel)
     runs = [dict(speed_rpm=k[0], frequency_hz=k[1], amplitude_nm=k[2], **o) for k, o in zip(keys, out)]
     # stiffness at 5 and 30 deg for each speed: interpolate in log(angle) among the runs
     # (per excitation frequency: at 5 Hz and above the damper's own dynamics near its
@@ -474,11 +522,50 @@ STUDIES = {
 }
 
 
+#: Each study's plan builder ``(system, quick) -> Plan``, the first thing the study does.
+PLANS = {
+    "order-rule": _order_rule_plan,
+    "additional-orders": _additional_orders_plan,
+    "sufficient-excitation": _sufficient_excitation_plan,
+    "mapping": _mapping_plan,
+    "poor-performance": _poor_performance_plan,
+    "speed-stiffness": _speed_stiffness_plan,
+}
+
+
+def _check_name(name):
+    if not isinstance(name, str) or name not in STUDIES:
+        raise InputError(f"study {name!r}: accepted is one of {', '.join(STUDIES)}")
+
+
+def study_plan(name, quick, system=None) -> Plan:
+    """The plan of study ``name`` on its reduced (``quick``) or full grid: the sweeps and
+    runs the study makes, built from its grid without simulating anything."""
+    _check_name(name)
+    return PLANS[name](_default(system), bool(quick))
+
+
+def study_cost(name, quick, system=None) -> costs.Cost:
+    """Cost of running study ``name`` (``quick``: the reduced grid) on ``system`` (default:
+    the default parameter set), before anything is simulated: work [step·DOF] and peak
+    bytes [B] of the simulations its plan lists (:func:`study_plan`, the same grid the
+    study runs), for :func:`dampersim.costs.admit`.
+
+    Every simulation counts as computed, also those the cache may hold (looking them up
+    needs the kernel's source hash and a disk read per point): an upper bound when part
+    of the study was run before. No study chooses later runs from earlier results, so
+    on an empty cache the count is the study's own. Raises InputError for an unknown study.
+    """
+    plan = study_plan(name, quick, system)
+    n = plan.simulations()
+    what = (f"the {name} study ({'reduced' if quick else 'full'} grid, {n} simulation{'s' if n != 1 else ''})")
+    return plan_cost(plan, what)
+
+
 def run_study(name, system=None, quick=False, executor="processes", progress=None, cancel=None):
     """Run the study ``name`` (one of :data:`STUDIES`)."""
 
-    if name not in STUDIES:
-        raise InputError(f"study {name!r}: accepted is one of {', '.join(STUDIES)}")
+    _check_name(name)
     return STUDIES[name](system=system, quick=quick, executor=executor, progress=progress, cancel=cancel)
 
 
