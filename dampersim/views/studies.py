@@ -1,13 +1,16 @@
 """The Studies page's data: one chapter 7 study run with progress, as figures, its checks
-against the thesis's findings and its result document."""
+against the thesis's findings and its result document; and the study's cost, estimated
+from its plan before anything runs and judged by the server's budget
+(:func:`dampersim.costs.admit`)."""
 
 from __future__ import annotations
 
 import json
 
+from dampersim import costs
 from dampersim.errors import InputError
 from dampersim.plotting.studies import study_figures
-from dampersim.studies import STUDIES, run_study
+from dampersim.studies import STUDIES, run_study, study_cost
 from dampersim.views.notices import notice, query_value
 from dampersim.views.pulsation import parse_bool, quoted
 
@@ -42,16 +45,45 @@ def parse_studies_query(query: dict | None) -> tuple:
     return state, notices
 
 
+def _check_name(name):
+    if not isinstance(name, str) or name not in STUDY_NAMES:
+        raise InputError(f"study {quoted(name)}: accepted is one of {', '.join(STUDY_NAMES)}")
+
+
+def study_request_cost(name, quick) -> costs.Cost:
+    """Cost of study ``name`` (``quick``: the reduced grid) on the default parameter set:
+    work [step·DOF] and bytes [B] (:func:`dampersim.studies.study_cost`, from the study's
+    own grid, every run counted as computed). Raises InputError for an unknown study."""
+    _check_name(name)
+    return study_cost(name, bool(quick))
+
+
+def estimate_text(cost: costs.Cost) -> str:
+    """The estimate shown next to the Run button: "about 6.3e9 step·DOF, ~2 min of one core"."""
+    work = f"{cost.work:.1e}".replace("e+0", "e").replace("e+", "e")
+    return f"about {work} step·DOF, ~{costs.duration_text(cost.seconds())} of one core"
+
+
+def admit_study(name, quick) -> costs.Cost:
+    """The study's cost when this server's budget admits it (a study never starts by itself,
+    so within the limit it runs on its Run button whatever the autostart budget). Raises
+    :class:`dampersim.costs.BudgetError` (the estimate and the limit) above the budget,
+    InputError for an unknown study; nothing is simulated either way."""
+    cost = study_request_cost(name, quick)
+    costs.admit(cost)
+    return cost
+
+
 def study_view(name: str, quick: bool, progress=None) -> dict:
-    """Run study ``name`` (``quick``: the reduced grid) on worker processes.
+    """Run study ``name`` (``quick``: the reduced grid) on worker processes, after checking
+    its cost against the server's budget again (:func:`admit_study`: nothing runs above it).
 
     ``progress(done, total, cached)`` follows the test points. Returns {"figures": Plotly
     figures, "checks": [(finding, agrees)], "thesis": {quantity: the thesis's value},
     "warnings": [...], "document": the result document as JSON text without the raw
-    results}. Raises a DampersimError naming what is wrong.
+    results}. Raises a DampersimError naming what is wrong (a BudgetError above the budget).
     """
-    if not isinstance(name, str) or name not in STUDY_NAMES:
-        raise InputError(f"study {quoted(name)}: accepted is one of {', '.join(STUDY_NAMES)}")
+    admit_study(name, quick)
     res = run_study(name, quick=bool(quick), executor="processes", progress=progress)
     return {
         "figures": study_figures(res),
@@ -62,4 +94,5 @@ def study_view(name: str, quick: bool, progress=None) -> dict:
     }
 
 
-__all__ = ["STUDY_NAMES", "DEFAULT_STUDY", "DEFAULT_STATE", "parse_studies_query", "study_view"]
+__all__ = ["STUDY_NAMES", "DEFAULT_STUDY", "DEFAULT_STATE", "parse_studies_query", "study_request_cost", "estimate_text",
+           "admit_study", "study_view"]
