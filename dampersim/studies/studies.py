@@ -7,6 +7,10 @@ from_cache)`` and ``cancel``, and returns a JSON-ready dict: ``params`` (the gri
 ``thesis`` (the thesis's numbers for comparison), ``warnings``, point counts and the
 wall time. MR sweeps go through :func:`dampersim.sweeps.executor.run_sweep` and its
 result cache; the speed-stiffness runs through a study cache of the same kind.
+
+Each study first builds its plan from its grid (``PLANS``, :mod:`dampersim.studies._plan`)
+and then runs exactly that plan, so :func:`study_cost` (work [step·DOF] and bytes [B])
+is known before anything is simulated and follows the grid when a study changes.
 """
 
 from __future__ import annotations
