@@ -113,11 +113,11 @@ def order_rule(system=None, quick=False, executor="processes", progress=None, ca
             "mean_torque_nm": tq,
             "signal": [{"order": o[0], "amplitude_nm": o[1]} for o in ranked],
             "mr_full": {f"{k:g}": v for k, v in base.items()},
-            "repeatability_pct": scatter,
+            "perturbation_mr_change_pct": scatter,
             "replicas": rows,
         })
     results = {"cases": out, "max_abs_change_pct_by_n": {str(n): v for n, v in worst.items()},
-               "max_abs_repeatability_pct": worst_scatter}
+               "max_abs_perturbation_mr_change_pct": worst_scatter}
     checks = {
         "three_orders_below_2pct": worst.get(3, math.inf) < 2.0,
         "dominant_alone_clearly_more": worst[1] > 2.0 * max(worst.get(3, 0.0), 0.25),
