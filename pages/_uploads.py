@@ -6,6 +6,13 @@ says how large it is, what the page accepts and which command takes larger files
 a file within the limit goes on to the page's server callback through a ``dcc.Store``
 (``<upload id>-data``: {"contents", "filename"}); a larger one only shows the notice
 (``<upload id>-size-notice``). The server checks the size again when it decodes the file.
+
+The server's check of a file (decoding, unpacking, reading its metadata) runs off the
+request thread: :func:`background_check` gives the keyword arguments of a background
+callback that goes through the dashboard's job queue (queued like every other job) and
+shows :func:`checking` (a line saying what is being checked, with the queue position or
+the step) while it runs. The file's contents reach the job only as the callback's
+argument (the job queue keeps the arguments of a queued job in its private folder).
 """
 
 from __future__ import annotations
@@ -13,6 +20,12 @@ from __future__ import annotations
 import json
 
 from dash import Input, Output, State, clientside_callback, dcc, html
+
+#: Styles of the "checking" line: shown while the check runs, hidden otherwise.
+SHOWN = {}
+HIDDEN = {"display": "none"}
+#: Milliseconds between two polls of a running check (a check takes 0.1-1 s).
+CHECK_POLL_MS = 300
 
 _JS = """
 function(contents, filename) {
@@ -77,3 +90,37 @@ def store_contents(data) -> tuple:
         return None, None
     contents, filename = data.get("contents"), data.get("filename")
     return (contents if isinstance(contents, str) else None), (filename if isinstance(filename, str) else None)
+
+
+def checking(cid: str, label: str):
+    """The line shown while the background check ``cid`` runs (hidden otherwise): ``label``
+    (what is being checked), a bar and the job's status (its place in the queue, then the
+    step). Element ids: ``<cid>-checking``, ``-checking-bar``, ``-checking-text``."""
+    return html.Div([
+        html.Span("⏳", className="notice-icon"),
+        html.Div([
+            html.Span(label, className="notice-text"),
+            html.Progress(id=f"{cid}-checking-bar", className="progress"),
+            html.Div("", id=f"{cid}-checking-text", className="progress-text"),
+        ], style={"flex": "1 1 auto"}),
+    ], id=f"{cid}-checking", className="notice notice-info", role="status", style=HIDDEN)
+
+
+def background_check(cid: str, running=()) -> dict:
+    """Keyword arguments of the background callback that checks for ``cid`` (see
+    :func:`checking`): through the job queue, with the queue position or step as progress
+    (bar value, bar max, text) and the checking line shown while it runs; ``running``:
+    more ``(Output, while running, after)`` triples, e.g. the upload disabled."""
+    return {
+        "background": True,
+        "progress": [Output(f"{cid}-checking-bar", "value"), Output(f"{cid}-checking-bar", "max"),
+                     Output(f"{cid}-checking-text", "children")],
+        "running": [(Output(f"{cid}-checking", "style"), SHOWN, HIDDEN), *running],
+        "interval": CHECK_POLL_MS,
+    }
+
+
+def check_started(set_progress, text: str) -> None:
+    """Tell the page that the check runs now (bar without a value: it moves without an
+    end) and what it does."""
+    set_progress((None, None, text))

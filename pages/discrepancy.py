@@ -10,6 +10,13 @@ A rig recording (MDF4, TDMS, MAT, CSV) uploaded in "Import a rig recording" is p
 with the reviewed cuts (:mod:`dampersim.views.rigdata`); the new campaign is then selected
 like an uploaded zip.
 
+Checking an uploaded zip, previewing a recording and the validation report of the chosen
+campaign read files of up to 10 MB and run off the request thread: background callbacks
+through the dashboard's job queue (:func:`pages._uploads.background_check`), with a
+"checking" line while they run. The upload reaches the job only as the callback's
+argument. A refused or failed check changes nothing that was uploaded before: the
+campaign list, the chosen campaign and a recording under review stay.
+
 URL keys: ``campaign`` (a bundled example's folder name) or ``upload`` (the id of a
 campaign uploaded to this server).
 """
@@ -33,7 +40,7 @@ from dampersim.views.discrepancy import (
     diagnosis_admission,
     discrepancy_choice,
     discrepancy_figures,
-    discrepancy_folder,
+    discrepancy_key,
     discrepancy_query,
     discrepancy_value,
     discrepancy_view,
@@ -133,6 +140,8 @@ def layout(**query):
                 className="upload", multiple=False, accept=".zip,application/zip"),
                 hint=f"Accepted: {CAMPAIGN_ACCEPTED}."),
             *U.components("discrepancy-upload"),
+            U.checking("discrepancy-upload", "Checking the zip on the server: its entries, the manifest and the size "
+                                             "of every test point (nothing is loaded before that)."),
             html.Div(id="discrepancy-upload-notices", className="notices"),
         ]),
         W.section("Import a rig recording", [
@@ -142,6 +151,8 @@ def layout(**query):
                 hint=f"Accepted: {RECORDING_ACCEPTED}. The channel mapping and the proposed cuts are shown on the "
                      "right for review before anything is created."),
             *U.components("discrepancy-import-upload"),
+            U.checking("discrepancy-import-upload", "Reading the recording on the server: its channels, their mapping "
+                                                    "and the cuts it proposes."),
             html.Div(id="discrepancy-import-notices", className="notices"),
         ]),
         W.run_panel(PAGE, "Run diagnosis"),
@@ -155,7 +166,9 @@ def layout(**query):
         *J.background_header(PAGE),
         html.Div([
             import_card(),
-            W.card("Campaign validation", html.Div(id="discrepancy-report"), wide=True),
+            W.card("Campaign validation", html.Div([
+                U.checking("discrepancy-report", "Checking the campaign: every manifest row and every file."),
+                html.Div(id="discrepancy-report")]), wide=True),
             W.card("Verdict", html.Div(html.P("No diagnosis shown yet: press Run diagnosis.", className="hint"),
                                        id="discrepancy-verdict"), wide=True),
             W.card("Held-out gap at each stage", W.graph("discrepancy-gap", 360, "No diagnosis shown yet")),
@@ -198,19 +211,6 @@ def upload(contents, filename, options):
     return options, value, W.render_notices([notice(text, "success")])
 
 
-@callback(
-    Output("discrepancy-campaign", "options"),
-    Output("discrepancy-campaign", "value"),
-    Output("discrepancy-upload-notices", "children"),
-    Input("discrepancy-upload-data", "data"),
-    State("discrepancy-campaign", "options"),
-    prevent_initial_call=True,
-)
-def upload_cb(data, options):
-    contents, filename = U.store_contents(data)  # passed on by the browser's size check
-    return upload(contents, filename, options)
-
-
 # --------------------------------------------------------------------------- rig recording import
 def report_list(lines):
     """Import report lines as a nested list: a file's line, its indented lines under it."""
@@ -236,45 +236,36 @@ def dropped_table(dropped):
 IMPORT_PREVIEW_OUTPUTS = 8
 
 
-def preview_recording(contents, filename):
-    """An uploaded recording -> (staged upload {"id", "file"} or None, card style, report,
-    cut rows, dropped cuts, Create button disabled, Create notices (cleared), notices). A
-    refused recording hides the review, says what was wrong and what is accepted, and keeps
-    nothing."""
+def _review_kept(staged) -> str:
+    """" The review of X on the right stays as it was." when a recording is under review."""
+    if isinstance(staged, dict) and isinstance(staged.get("file"), str) and staged.get("id"):
+        return f" The review of {staged['file'][:200]} on the right stays as it was."
+    return ""
+
+
+def preview_recording(contents, filename, staged=None):
+    """An uploaded recording -> (staged upload {"id", "file"}, card style, report, cut rows,
+    dropped cuts, Create button disabled, Create notices (cleared), notices). A refused
+    recording says what was wrong and what is accepted and keeps nothing of that file; the
+    recording already under review (``staged``) and its edited cuts stay as they were."""
     if not contents:
         return (no_update,) * IMPORT_PREVIEW_OUTPUTS
     name = filename or "the file"
+    kept = (no_update,) * (IMPORT_PREVIEW_OUTPUTS - 1)
     try:
         preview = stage_recording(contents, filename)
     except DampersimError as exc:
-        return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(
-            f"The recording was refused: {public_message(exc)}", "error")])
+        return (*kept, W.render_notices([notice(
+            f"The recording was refused: {public_message(exc)}.{_review_kept(staged)}", "error")]))
     except Exception as exc:  # a file the readers did not foresee: say so, keep serving
-        return None, HIDDEN, [], [], [], True, [], W.render_notices([notice(
+        return (*kept, W.render_notices([notice(
             f"The recording was refused: {name} could not be read ({public_message(exc, 'recording upload')}); "
-            f"accepted is {RECORDING_ACCEPTED}", "error")])
+            f"accepted is {RECORDING_ACCEPTED}.{_review_kept(staged)}", "error")]))
     text = (f"{name} was read: {len(preview['cuts'])} proposed cut(s). Review them on the right, then press "
             "Create campaign.")
     level = "success" if preview["cuts"] else "warning"
     return ({"id": preview["id"], "file": preview["file"]}, {}, report_list(preview["report"]), preview["cuts"],
             dropped_table(preview["dropped"]), not preview["cuts"], [], W.render_notices([notice(text, level)]))
-
-
-@callback(
-    Output("discrepancy-import-staged", "data"),
-    Output("discrepancy-import-card", "style"),
-    Output("discrepancy-import-report", "children"),
-    Output("discrepancy-import-cuts", "data"),
-    Output("discrepancy-import-dropped", "children"),
-    Output("discrepancy-import-create", "disabled"),
-    Output("discrepancy-import-create-notices", "children", allow_duplicate=True),
-    Output("discrepancy-import-notices", "children"),
-    Input("discrepancy-import-upload-data", "data"),
-    prevent_initial_call=True,
-)
-def preview_recording_cb(data):
-    contents, filename = U.store_contents(data)  # passed on by the browser's size check
-    return preview_recording(contents, filename)
 
 
 def create_campaign(n_clicks, staged, rows, options):
@@ -348,9 +339,91 @@ def report_for(value):
                                         f"accepted is {CAMPAIGN_ACCEPTED}.", "error")])
 
 
-@callback(Output("discrepancy-report", "children"), Input("discrepancy-campaign", "value"))
-def report_cb(value):
-    return report_for(value)
+# --------------------------------------------------------------------------- checks off the request thread
+def upload_failed(exc):
+    """A campaign upload whose check did not finish (its job died, was stopped or failed
+    unexpectedly): the campaign list and the chosen campaign stay; the page says so."""
+    return no_update, no_update, W.render_notices([notice(
+        f"The upload was not checked: {public_message(exc, 'campaign upload check')}. Nothing was changed; upload "
+        f"the zip again. Accepted is {CAMPAIGN_ACCEPTED}.", "error")])
+
+
+def preview_failed(exc):
+    """A recording whose preview did not finish: the review on the right stays."""
+    return (*(no_update,) * (IMPORT_PREVIEW_OUTPUTS - 1), W.render_notices([notice(
+        f"The recording was not read: {public_message(exc, 'recording preview')}. Nothing was changed; upload it "
+        f"again. Accepted is {RECORDING_ACCEPTED}.", "error")]))
+
+
+def report_failed(exc):
+    """A validation report that did not finish."""
+    return W.render_notices([notice(f"The campaign could not be checked ({public_message(exc, 'campaign report')}); "
+                                    "choose it again to retry.", "error")])
+
+
+def _register_checks():
+    """Register the three checks as background callbacks and return them (plain functions
+    too: ``fn(set_progress, *callback arguments)``).
+
+    They are defined inside this function on purpose: a job process cannot import this
+    page module by itself (``dash.register_page`` needs the app), so the job queue finds a
+    local function by its Dash key after importing ``app``."""
+
+    @callback(
+        Output("discrepancy-campaign", "options"),
+        Output("discrepancy-campaign", "value"),
+        Output("discrepancy-upload-notices", "children"),
+        Input("discrepancy-upload-data", "data"),
+        State("discrepancy-campaign", "options"),
+        prevent_initial_call=True,
+        on_error=upload_failed,
+        **U.background_check("discrepancy-upload", running=[
+            (Output("discrepancy-upload", "disabled"), True, False),
+            (Output("discrepancy-upload-notices", "style"), HIDDEN, {})]),
+    )
+    def upload_cb(set_progress, data, options):
+        contents, filename = U.store_contents(data)  # passed on by the browser's size check
+        if contents:
+            U.check_started(set_progress, f"unpacking {(filename or 'the zip')[:200]} and reading the size of its test points…")
+        return upload(contents, filename, options)
+
+    @callback(
+        Output("discrepancy-import-staged", "data"),
+        Output("discrepancy-import-card", "style"),
+        Output("discrepancy-import-report", "children"),
+        Output("discrepancy-import-cuts", "data"),
+        Output("discrepancy-import-dropped", "children"),
+        Output("discrepancy-import-create", "disabled"),
+        Output("discrepancy-import-create-notices", "children", allow_duplicate=True),
+        Output("discrepancy-import-notices", "children"),
+        Input("discrepancy-import-upload-data", "data"),
+        State("discrepancy-import-staged", "data"),
+        prevent_initial_call=True,
+        on_error=preview_failed,
+        **U.background_check("discrepancy-import-upload", running=[
+            (Output("discrepancy-import-upload", "disabled"), True, False),
+            (Output("discrepancy-import-notices", "style"), HIDDEN, {})]),
+    )
+    def preview_recording_cb(set_progress, data, staged):
+        contents, filename = U.store_contents(data)  # passed on by the browser's size check
+        if contents:
+            U.check_started(set_progress, f"reading {(filename or 'the recording')[:200]} and proposing cuts…")
+        return preview_recording(contents, filename, staged)
+
+    @callback(
+        Output("discrepancy-report", "children"),
+        Input("discrepancy-campaign", "value"),
+        on_error=report_failed,
+        **U.background_check("discrepancy-report", running=[(Output("discrepancy-report", "style"), {"opacity": 0.4}, {})]),
+    )
+    def report_cb(set_progress, value):
+        U.check_started(set_progress, "reading every manifest row and file…")
+        return report_for(value)
+
+    return upload_cb, preview_recording_cb, report_cb
+
+
+upload_cb, preview_recording_cb, report_cb = _register_checks()
 
 
 # --------------------------------------------------------------------------- diagnosis (background)
@@ -386,7 +459,9 @@ def request(run, initial, values, base_params, autorun):
         out["status"] = W.render_notices([notice(text, "error")])
         return out
     if run or (by_link and rule == "run"):
-        out["job"] = {"state": state}
+        # work: the key of the diagnosis view (campaign files, options, parameters, code):
+        # identical diagnoses asked for by several tabs are computed once by the job queue
+        out["job"] = {"state": state, "work": discrepancy_key(folder)}
         out["status"] = f"Starting the diagnosis of {summary['torsional']} torsional test points…"
         return out
     if by_link:  # a link asked for more than it may start by itself
@@ -396,17 +471,44 @@ def request(run, initial, values, base_params, autorun):
     return out
 
 
+GONE_TEXT = "the campaign is no longer on this server (upload it again)"
+
+
+def checked_job_state(job_data) -> tuple:
+    """(state, folder, summary) of a diagnosis job's request, validated again like a link
+    (the page's equivalent of :func:`pages._jobs.checked_job_state`): the state must name
+    a bundled example or an upload still on this server, resolve to itself, and hold
+    enough valid torsional points. Raises InputError naming what is refused, before any
+    work; the budget is checked by :func:`job` on the campaign read here."""
+    raw = job_data.get("state") if isinstance(job_data, dict) else None
+    if not isinstance(raw, dict):
+        raise InputError(f"the request names no campaign (state = {type(raw).__name__}); accepted is a state with "
+                         "campaign or upload; press Run diagnosis to start again")
+    value = discrepancy_value(raw)
+    if not isinstance(value, str):
+        raise InputError(GONE_TEXT)
+    state, _notices, folder = discrepancy_choice(value, example_campaigns())
+    if folder is None or discrepancy_value(state) != value:  # refused or gone: the fallback is not what was asked
+        raise InputError(GONE_TEXT)
+    summary = campaign_summary(folder)
+    if not summary["ready"]:
+        raise InputError(f"{summary['torsional']} valid torsional test point(s) in this campaign; the diagnosis needs "
+                         f"at least {MIN_TORSIONAL_POINTS} (see the validation report)")
+    return state, folder, summary
+
+
 def job(job_data, progress):
-    # the state comes back from the browser: resolved again like a link, never trusted
-    state_in = job_data.get("state") if isinstance(job_data, dict) else None
-    value = discrepancy_value(state_in) if isinstance(state_in, dict) else None
-    state, _notices, folder = discrepancy_choice(value if isinstance(value, str) else None, example_campaigns())
-    if folder is None or (isinstance(state_in, dict) and discrepancy_value(state) != value):
-        return {"error": "the campaign is no longer on this server (upload it again)"}
+    """Background part: validate the request again (state and budget), then diagnose."""
+    try:
+        state, folder, summary = checked_job_state(job_data)
+    except DampersimError as exc:
+        return {"error": public_message(exc)}
+    except Exception as exc:  # reported on the page (no traceback, no server path), never raised into Dash
+        return {"error": public_message(exc, "discrepancy request")}
     reg = SweepRegistry()
     t0 = time.monotonic()
     try:
-        rule, text = diagnosis_admission(campaign_summary(folder), started_by_link=False)
+        rule, text = diagnosis_admission(summary, started_by_link=False)  # the budget, on the campaign as it is now
         if rule == "refuse":
             return {"error": text}
         reg.start(PAGE, 0)

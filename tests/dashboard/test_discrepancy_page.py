@@ -12,7 +12,11 @@ from __future__ import annotations
 import base64
 import io
 import json
+import os
+import pickle
 import shutil
+import stat
+import tempfile
 import time
 import zipfile
 from pathlib import Path
@@ -82,6 +86,34 @@ def dc():
     return DashClient(app.app)
 
 
+#: Budget of one check through the job queue over HTTP [s]: starting the fork server
+#: (imports numpy, pandas, numba, dash: ~2 s), the job process importing app (~1 s) and a
+#: check of a few kB (0.1 s); 60 s leaves room on 2 shared cores.
+HTTP_CHECK_BUDGET_S = 60.0
+
+
+def background_call(dc, output_part, values, changed, budget_s=HTTP_CHECK_BUDGET_S):
+    """A background callback over HTTP as the renderer drives it: the first POST queues the
+    job and answers {"cacheKey", "job"}; polls with them until the response arrives.
+    Returns (response, [progress text of each poll that carried one])."""
+    body = dc.body(output_part, values, changed)
+    r = dc.client.post("/_dash-update-component", json=body)
+    assert r.status_code == 200, r.data[:300]
+    started = r.get_json()
+    assert set(started) >= {"cacheKey", "job"}, started  # queued as a job, not answered in the request
+    query = f"?cacheKey={started['cacheKey']}&job={started['job']}"
+    deadline, texts = time.monotonic() + budget_s, []
+    while time.monotonic() < deadline:
+        r = dc.client.post("/_dash-update-component" + query, json=body)
+        assert r.status_code in (200, 204), r.data[:300]
+        got = r.get_json(silent=True) or {}
+        texts += [v for k, v in (got.get("progress") or {}).items() if k.endswith("-checking-text.children")]
+        if "response" in got:
+            return got["response"], texts
+        time.sleep(0.2)
+    raise AssertionError(f"the check did not finish within {budget_s} s")
+
+
 # ----------------------------------------------------------------------------- layout and URL state
 def test_layout_renders_with_and_without_a_query():
     lay = D.layout()
@@ -127,7 +159,8 @@ def test_refused_dropdown_value_gives_a_notice_in_the_request(cache_dir):
     assert "upload the zip again" in as_json(out["notices"]) and out["search"] == f"?campaign={EXAMPLE}"
     assert "Not diagnosed yet: 12 torsional test points" in as_json(out["status"]) and "job" not in out
     run = D.request(True, False, [EXAMPLE], None, False)
-    assert run["job"] == {"state": {"campaign": EXAMPLE, "upload": None}}
+    assert run["job"] == {"state": {"campaign": EXAMPLE, "upload": None},
+                          "work": views.discrepancy_key(views.example_campaigns()[EXAMPLE])}
 
 
 # ----------------------------------------------------------------------------- uploads
@@ -276,15 +309,55 @@ def test_layout_over_http_good_and_bad_links(dc):
     assert "notice-warning" in bad and "campaign='nope'" in bad and f"Using the example {EXAMPLE}" in bad
 
 
-def test_bad_upload_over_http_gives_the_notice(dc, cache_dir):
-    values = {"discrepancy-upload-data.data": {"contents": zip_upload({"readme.txt": b"no campaign here"}),
-                                               "filename": "readme.zip"},
+def test_bad_upload_over_http_gives_the_notice(dc, jobs_here):
+    """Through the real job queue and its fork server: the job process finds the check by its
+    Dash key after importing app; the upload reaches it only as the callback's argument."""
+    contents = zip_upload({"readme.txt": b"no campaign here " + os.urandom(2048)})  # random: a unique marker
+    values = {"discrepancy-upload-data.data": {"contents": contents, "filename": "readme.zip"},
               "discrepancy-campaign.options": [{"label": f"example: {EXAMPLE}", "value": EXAMPLE}]}
-    r = dc.call("discrepancy-upload-notices.children", values, changed=["discrepancy-upload-data.data"])
-    assert r.status_code == 200
-    resp = r.get_json()["response"]
+    manager = app.app._background_manager
+    payloads, submit = [], manager.registry.submit
+
+    def recording_submit(*args, **kwargs):
+        payloads.append(kwargs.get("payload"))
+        return submit(*args, **kwargs)
+
+    marker = contents[-400:-100].encode()  # a piece of the base64 text the browser posts
+    t0 = time.time() - 1.0
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(manager.registry, "submit", recording_submit)
+        resp, _progress = background_call(dc, "discrepancy-upload-notices.children", values,
+                                          ["discrepancy-upload-data.data"])
     assert "discrepancy-campaign" not in resp  # no_update: the chosen campaign stays
     assert "holds no manifest.csv" in json.dumps(resp["discrepancy-upload-notices"])
+    # the job's arguments hold the file once (Dash's context refers to the same object, pickled once)
+    assert len(payloads) == 1 and payloads[0].count(marker) == 1
+    fn_key, args, _context = pickle.loads(payloads[0])
+    assert args[0] == values["discrepancy-upload-data.data"]
+    # no other copy on disk: only the job queue's private folders (0700) ever held it
+    private = [Path(manager._store), Path(manager.registry.folder)]
+    assert all(stat.S_IMODE(p.stat().st_mode) == 0o700 for p in private)
+    raw = base64.b64decode(contents.split(",", 1)[1])[-300:]
+    for f in files_written_since(t0, [jobs_here, *(p.parent for p in private), Path(tempfile.gettempdir())]):
+        if not any(p in f.parents for p in private):
+            data = f.read_bytes()
+            assert marker not in data and raw not in data, f"a copy of the upload in {f.name}"
+
+
+def files_written_since(t0: float, roots) -> set:
+    """Regular files under ``roots`` modified after ``t0`` (epoch s), up to 64 MB each."""
+    out = set()
+    for root in roots:
+        for sub, _dirs, files in os.walk(root):
+            for name in files:
+                f = Path(sub, name)
+                try:
+                    st = f.lstat()
+                except OSError:
+                    continue
+                if stat.S_ISREG(st.st_mode) and st.st_mtime >= t0 and st.st_size <= 64 * 2**20:
+                    out.add(f)
+    return out
 
 
 def test_request_and_show_over_http(dc, tiny):
@@ -306,3 +379,143 @@ def test_request_and_show_over_http(dc, tiny):
 
     job = resp["discrepancy-job"]["data"]  # the browser holds an opaque ticket; the state stays on the server
     assert tickets.redeem(job["ticket"], "discrepancy")["state"]["campaign"] == EXAMPLE
+
+
+# ----------------------------------------------------------------------------- checks off the request thread
+CHECKS = {  # output of the callback -> the id of its "checking" line
+    "discrepancy-upload-notices.children": "discrepancy-upload",
+    "discrepancy-import-notices.children": "discrepancy-import-upload",
+    "discrepancy-report.children": "discrepancy-report",
+}
+
+
+def test_the_three_checks_are_background_callbacks_of_the_job_queue():
+    """Checking a zip, previewing a recording and the validation report run as background
+    callbacks (through the job queue), each showing its checking line while it runs; none
+    reads an upload in the request thread any more."""
+    app.app._setup_server()  # moves the pages' callbacks into the app's list (idempotent)
+    found = {}
+    for cb in app.app._callback_list:
+        for out, cid in CHECKS.items():
+            if out in cb["output"].strip(".").split("..."):
+                found[out] = cb
+                spec = app.app.callback_map[cb["output"]]
+                assert cb.get("background"), f"{out} runs in the request thread"
+                assert spec["manager"] is None or spec["manager"] is app.app._background_manager
+                progress = [str(o) for o in spec["background"]["progress"]]
+                assert progress == [f"{cid}-checking-bar.value", f"{cid}-checking-bar.max",
+                                    f"{cid}-checking-text.children"]  # queue position, then the step
+                assert cb["running"]["running"][f"{cid}-checking.style"] == {}  # shown while it runs
+                assert cb["running"]["runningOff"][f"{cid}-checking.style"] == {"display": "none"}
+    assert set(found) == set(CHECKS)
+    from pages._background import JobQueueManager
+
+    assert isinstance(app.app._background_manager, JobQueueManager)  # the job queue, not one process per call
+    for upload_id in ("discrepancy-upload", "discrepancy-import-upload"):  # no second upload while one is checked
+        cb = next(c for c in app.app._callback_list if c.get("running")
+                  and f"{upload_id}.disabled" in c["running"]["running"])
+        assert cb["running"]["running"][f"{upload_id}.disabled"] is True
+    lay = D.layout()
+    for cid in CHECKS.values():
+        assert find(lay, f"{cid}-checking").style == {"display": "none"}
+
+
+def test_the_checks_are_found_by_key_in_a_job_process():
+    """A job process cannot import the page module by itself (dash.register_page needs the
+    app): the checks must not travel pickled by reference, so the job process imports app
+    and finds them by their Dash key."""
+    manager = app.app._background_manager
+    for fn in (D.upload_cb, D.preview_recording_cb, D.report_cb):
+        job_fn = next(j for j in manager.func_registry.values() if j.fn is fn)
+        with pytest.raises((pickle.PicklingError, AttributeError, TypeError)):
+            pickle.dumps(job_fn)
+
+
+def test_checks_as_plain_functions_give_the_same_outcomes(tiny):
+    progress = []
+    data = {"contents": tiny["contents"], "filename": "tiny.zip"}
+    options, value, notices = D.upload_cb(progress.append, data, [])
+    assert (options, value) == D.upload(tiny["contents"], "tiny.zip", [])[:2] == (tiny["options"], tiny["value"])
+    assert as_json(notices) == as_json(tiny["upload_notices"])
+    assert progress == [(None, None, "unpacking tiny.zip and reading the size of its test points…")]
+    assert D.upload_cb(progress.append, None, []) == (no_update, no_update, [])  # no file: nothing changes
+    progress.clear()
+    report = D.report_cb(progress.append, tiny["value"])
+    assert as_json(report) == as_json(D.report_for(tiny["value"])) and "3 of 3 test points valid" in as_json(report)
+    assert progress == [(None, None, "reading every manifest row and file…")]
+
+
+def test_a_check_that_fails_keeps_what_was_uploaded():
+    """A job that died or failed: the campaign list, the chosen campaign and a recording
+    under review stay (no_update); the page says that nothing changed and what is
+    accepted, without the error's text (an incident id)."""
+    from dash.exceptions import BackgroundCallbackError
+
+    exc = BackgroundCallbackError("An error occurred inside a background callback: the job stopped (/srv/x)\n")
+    options, value, notices = D.upload_failed(exc)
+    assert options is no_update and value is no_update
+    text = as_json(notices)
+    assert "The upload was not checked" in text and "Nothing was changed" in text and "accepted is" in text.lower()
+    assert "incident" in text and "/srv/x" not in text
+    out = D.preview_failed(exc)
+    assert len(out) == D.IMPORT_PREVIEW_OUTPUTS and all(v is no_update for v in out[:-1])
+    assert "The recording was not read" in as_json(out[-1]) and "/srv/x" not in as_json(out[-1])
+    assert "could not be checked" in as_json(D.report_failed(exc))
+
+
+# ----------------------------------------------------------------------------- the diagnosis job
+def test_identical_diagnosis_requests_have_one_work_key(tiny, monkeypatch):
+    """The job data's work key is the diagnosis view key: equal for equal requests (two
+    tabs: one job), different for another campaign or other options."""
+    example = D.request(True, False, [EXAMPLE], None, False)["job"]
+    again = D.request(True, False, [EXAMPLE], None, False)["job"]
+    assert example["work"] == again["work"] == views.discrepancy_key(views.example_campaigns()[EXAMPLE])
+    assert len(example["work"]) == 64  # a SHA-256, well within what the job queue keys on
+    monkeypatch.setattr(views.discrepancy, "DISCREPANCY_OPTIONS", {**TINY_OPTIONS, "shortlist": 2})
+    folder = views.upload_folder(tiny["value"][len(views.UPLOAD_PREFIX):])
+    upload = D.request(True, False, [tiny["value"]], None, False)["job"]  # not cached with these options
+    assert upload["work"] == views.discrepancy_key(folder) != example["work"]
+    monkeypatch.setattr(views.discrepancy, "DISCREPANCY_OPTIONS", {**TINY_OPTIONS, "shortlist": 3})
+    assert views.discrepancy_key(folder) != upload["work"]  # other options: other work
+
+
+def test_identical_diagnosis_requests_share_one_job(tmp_path):
+    """Two tabs asking for the same diagnosis: the job queue runs one job for both (the
+    manager keys on the job data's "work"); another campaign gets its own job."""
+    from pages import _background
+    from tests.hardening.test_background_manager import Caller, poll_all
+
+    work = D.request(True, False, [EXAMPLE], None, False)["job"]["work"]
+    manager = _background.make_manager(tmp_path / "callbacks", registry_dir=tmp_path / "jobs", max_jobs=2,
+                                       per_session=4, idle_timeout_s=30.0)
+    try:
+        tabs = [Caller(manager, "sleep_and_return", {"work": work, "nonce": n, "sleep": 0.3}, session="a" * 32)
+                for n in ("tab-1", "tab-2")]
+        other = Caller(manager, "sleep_and_return", {"work": "f" * 64, "nonce": "tab-3", "sleep": 0.3},
+                       session="a" * 32)
+        jobs = [manager.registry.waiter(c.job).job_id for c in (*tabs, other)]
+        assert jobs[0] == jobs[1] != jobs[2]
+        poll_all([*tabs, other], budget_s=60.0)  # budget: fork server start (~2 s) and two 0.3 s jobs
+        assert tabs[0].result == tabs[1].result and tabs[0].result["pid"] != other.result["pid"]
+    finally:
+        manager.shutdown()
+        _background._MANAGERS.remove(manager)
+        from dash.background_callback.managers import BaseBackgroundCallbackManager
+
+        BaseBackgroundCallbackManager.managers.remove(manager)
+
+
+@pytest.mark.parametrize("job_data, expect", [
+    ({}, "names no campaign"),
+    ({"state": None}, "names no campaign"),
+    ({"state": "hidden-effect-example"}, "names no campaign"),
+    ({"state": {"campaign": "../../etc", "upload": None}}, "no longer on this server"),
+    ({"state": {"campaign": None, "upload": "0123456789abcdef"}}, "no longer on this server"),
+    ({"state": {"campaign": None, "upload": None}}, "no longer on this server"),
+])
+def test_the_diagnosis_job_validates_its_state_again(cache_dir, monkeypatch, job_data, expect):
+    """The job re-parses its state like a link and never falls back to another campaign:
+    before this check, a job without a state diagnosed the default example."""
+    monkeypatch.setattr(D, "discrepancy_view", lambda *a, **k: pytest.fail("a refused request was diagnosed"))
+    out = D.job(job_data, lambda *a: None)
+    assert expect in out["error"], out

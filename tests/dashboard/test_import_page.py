@@ -26,7 +26,7 @@ from dampersim.rigdata.examples import long_recording_channels, write_recording
 from dampersim.views import rigdata as R
 from pages import discrepancy as D
 from tests.dashboard.test_callbacks import find
-from tests.dashboard.test_discrepancy_page import EXAMPLE, as_json
+from tests.dashboard.test_discrepancy_page import EXAMPLE, as_json, background_call
 from tests.dashboard.test_http import DashClient
 
 OPTIONS = [{"label": f"example: {EXAMPLE}", "value": EXAMPLE}]
@@ -60,9 +60,10 @@ def listed(cache) -> dict:
     return out
 
 
-def previewed(contents, filename):
+def previewed(contents, filename, staged=None):
     """The page's preview callback, unpacked by output name."""
-    staged, style, report, rows, dropped, disabled, create_notices, notices = D.preview_recording(contents, filename)
+    staged, style, report, rows, dropped, disabled, create_notices, notices = D.preview_recording(contents, filename,
+                                                                                                  staged)
     return {"staged": staged, "style": style, "report": report, "rows": rows, "dropped": dropped, "disabled": disabled,
             "create_notices": create_notices, "notices": notices}
 
@@ -195,9 +196,31 @@ def test_bad_uploads_are_refused_with_a_notice(cache_dir, recordings, kind, file
     assert "accepted" in text
     for e in expect:
         assert e in text, e
-    assert out["staged"] is None and out["style"] == {"display": "none"} and out["rows"] == [] and out["disabled"] is True
+    # nothing on the page changes but the notice: a recording under review stays under review
+    assert all(out[k] is no_update for k in ("staged", "style", "report", "rows", "dropped", "disabled",
+                                             "create_notices"))
     assert str(cache_dir) not in text
     assert listed(cache_dir) == {R.STAGING_SUBDIR: [], views.UPLOADS_SUBDIR: []}  # nothing kept, nothing listed
+
+
+def test_a_refused_recording_keeps_the_review_of_the_one_before(cache_dir, recordings):
+    good = previewed(recordings["mdf4"], "rig-run.mf4")
+    bad = previewed(recordings["nospeed"], "nospeed.csv", good["staged"])
+    assert bad["staged"] is no_update and bad["rows"] is no_update and bad["style"] is no_update
+    text = as_json(bad["notices"])
+    assert "The recording was refused" in text and "The review of rig-run.mf4 on the right stays as it was" in text
+    options, value, _ = D.create_campaign(1, good["staged"], good["rows"], OPTIONS)  # still importable
+    assert value.startswith(views.UPLOAD_PREFIX)
+
+
+def test_the_preview_callback_gives_the_same_outcome_as_the_plain_function(cache_dir, recordings):
+    progress = []
+    data = {"contents": recordings["csv"], "filename": "rig-run.csv"}
+    out = D.preview_recording_cb(progress.append, data, None)
+    assert as_json(out) == as_json(D.preview_recording(recordings["csv"], "rig-run.csv"))
+    assert out[0]["file"] == "rig-run.csv" and len(out[3]) == 5
+    assert progress == [(None, None, "reading rig-run.csv and proposing cuts…")]
+    assert D.preview_recording_cb(progress.append, None, out[0]) == (no_update,) * D.IMPORT_PREVIEW_OUTPUTS
 
 
 @pytest.mark.parametrize("edit, expect", [
@@ -239,13 +262,12 @@ def test_forged_or_unknown_upload_ids_are_refused(cache_dir, recordings):
 
 
 # ----------------------------------------------------------------------------- over HTTP
-def test_preview_and_create_over_http(cache_dir, recordings):
+def test_preview_and_create_over_http(jobs_here, recordings):
+    """The preview runs as a job of the job queue (fork server, job process importing app),
+    the campaign is created in the request thread from what the job staged."""
     dc = DashClient(app.app)
-    r = dc.call("discrepancy-import-staged.data", {"discrepancy-import-upload-data.data": {
-                    "contents": recordings["mdf4"], "filename": "rig-run.mf4"}},
-                changed=["discrepancy-import-upload-data.data"])
-    assert r.status_code == 200, r.data[:500]
-    resp = r.get_json()["response"]
+    resp, _progress = background_call(dc, "discrepancy-import-staged.data", {"discrepancy-import-upload-data.data": {
+        "contents": recordings["mdf4"], "filename": "rig-run.mf4"}}, ["discrepancy-import-upload-data.data"])
     staged, rows = resp["discrepancy-import-staged"]["data"], resp["discrepancy-import-cuts"]["data"]
     assert len(rows) == 5 and staged["file"] == "rig-run.mf4"
     values = {"discrepancy-import-create.n_clicks": 1, "discrepancy-import-staged.data": staged,
