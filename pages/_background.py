@@ -196,14 +196,37 @@ PRELOAD = ("numpy", "pandas", "scipy.signal", "numba", "plotly.graph_objects", "
            "dampersim.views.studies")
 
 
-def _job_entry(blob, fn_key, app_module, store_dir, registry_folder, job_id, args, context):
+#: Environment variables a job process takes from the server at the moment the job starts
+#: (the fork server keeps the environment it was started with).
+JOB_ENV_PREFIXES = ("DAMPERSIM_", "NUMBA_")
+
+
+def job_environment() -> dict:
+    """The server's settings a job must see: every ``DAMPERSIM_*`` and ``NUMBA_*`` variable."""
+    return {k: v for k, v in os.environ.items() if k.startswith(JOB_ENV_PREFIXES)}
+
+
+def _job_entry(blob, fn_key, app_module, store_dir, registry_folder, job_id, args, context, env=None):
     """Entry point of a job process started by the fork server: a fresh interpreter, so it
     carries no SQLite connection, lock or thread of the server (a process forked from the
     threaded server inherits SQLite's view of locks other threads hold, and its first
-    cache write fails with "disk I/O error"). The job function travels pickled when it
-    can (a module-level function); otherwise it is found by its Dash key after importing
-    ``app_module`` (which registers the dashboard's callbacks)."""
-    job_fn = pickle.loads(blob) if blob is not None else _registered_job_fn(fn_key, app_module)
+    cache write fails with "disk I/O error"). ``env``: the server's settings now
+    (:func:`job_environment`), replacing those the fork server started with. The job
+    function travels pickled when it can (a module-level function); when it cannot be
+    pickled, or loading it fails (a page module imports only inside the app), it is found
+    by its Dash key after importing ``app_module`` (which registers the callbacks)."""
+    if env is not None:
+        for key in [k for k in os.environ if k.startswith(JOB_ENV_PREFIXES) and k not in env]:
+            del os.environ[key]
+        os.environ.update(env)
+    job_fn = None
+    if blob is not None:
+        try:
+            job_fn = pickle.loads(blob)
+        except Exception:  # noqa: BLE001 - e.g. a page module that registers a page on import
+            job_fn = None
+    if job_fn is None:
+        job_fn = _registered_job_fn(fn_key, app_module)
     _job_main(job_fn, store_dir, JobRegistry(registry_folder), job_id, args, context)
 
 
@@ -330,7 +353,8 @@ class JobQueueManager(DiskcacheManager):
                 blob = None
             proc = _forkserver().Process(
                 target=_job_entry,
-                args=(blob, fn_key, self.app_module, self._store, str(self.registry.folder), job_id, args, context),
+                args=(blob, fn_key, self.app_module, self._store, str(self.registry.folder), job_id, args, context,
+                      job_environment()),
                 name=f"dampersim-job-{job_id}")
         proc.start()
         with self._lock:

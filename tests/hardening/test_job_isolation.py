@@ -75,3 +75,32 @@ def test_a_job_started_during_a_transaction_writes_the_cache(tmp_path):
 def test_plain_fork_in_the_same_scenario_does_not_write(tmp_path):
     result = _run_while_a_thread_holds_a_transaction(tmp_path, "fork", budget_s=8.0)
     assert result != {"value": 3}, "plain fork wrote the cache: the scenario no longer shows the hazard"
+
+
+def report_cache_dir(job):
+    import os
+
+    return {"cache": os.environ.get("DAMPERSIM_CACHE_DIR")}
+
+
+FUNCTIONS[report_cache_dir.__name__] = report_cache_dir
+
+
+def test_a_job_sees_the_servers_settings_of_now_not_the_fork_servers(tmp_path, monkeypatch):
+    # the fork server keeps the environment it started with; a job must take the server's
+    # current DAMPERSIM_* settings (here: a cache folder changed after the first job)
+    manager = make_manager(tmp_path / "callbacks", registry_dir=tmp_path / "jobs", max_jobs=2, idle_timeout_s=30.0)
+    try:
+        results = []
+        for name in ("first", "second"):
+            monkeypatch.setenv("DAMPERSIM_CACHE_DIR", str(tmp_path / name))
+            caller = Caller(manager, "report_cache_dir", {"n": name})
+            deadline = time.monotonic() + 30.0  # fork server start plus a trivial job
+            while caller.poll() and time.monotonic() < deadline:
+                time.sleep(POLL_S)
+            results.append(caller.result)
+        assert results == [{"cache": str(tmp_path / "first")}, {"cache": str(tmp_path / "second")}], results
+    finally:
+        manager.shutdown()
+        _background._MANAGERS.remove(manager)
+        BaseBackgroundCallbackManager.managers.remove(manager)
