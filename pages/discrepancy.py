@@ -23,7 +23,6 @@ campaign uploaded to this server).
 
 from __future__ import annotations
 
-import json
 import time
 
 import dash
@@ -39,23 +38,21 @@ from dampersim.views.discrepancy import (
     campaign_summary,
     diagnosis_admission,
     discrepancy_choice,
-    discrepancy_figures,
     discrepancy_key,
     discrepancy_query,
     discrepancy_value,
     discrepancy_view,
     example_campaigns,
     parse_discrepancy_query,
-    ranking_rows,
     unpack_campaign_zip,
     upload_in_use,
     upload_label,
-    verdict_summary,
 )
 from dampersim.views.notices import notice
 from dampersim.views.rigdata import IMPORT_COMMAND, KINDS, MAX_RECORDING_BYTES, RECORDING_ACCEPTED, confirm_import, stage_recording
 from dampersim.views.sweeps import SweepRegistry
 from pages import _frame as F, _jobs as J, _uploads as U, _widgets as W
+from pages._diagnosis_view import render
 
 PAGE = "discrepancy"
 
@@ -69,16 +66,6 @@ RECORDING_SIZE_CHECK = U.size_checked_upload(
     "discrepancy-import-upload", MAX_RECORDING_BYTES,
     f"Import a larger recording on the server's command line ({IMPORT_COMMAND}), then diagnose it with "
     "python -m dampersim diagnose CAMPAIGN.")
-
-CALIBRATION_LABELS = {
-    "outer_stiffness": "outer spring rate",
-    "inner_stiffness": "inner spring rates",
-    "primary_inertia": "J_pri",
-    "secondary_inertia": "J_sec",
-    "outer_friction": "outer friction factor",
-    "inner_friction": "inner friction factors",
-}
-
 
 def _options(examples: dict, state: dict) -> list:
     opts = [{"label": f"example: {name}", "value": name} for name in examples]
@@ -526,73 +513,6 @@ def job(job_data, progress):
         return {"error": public_message(exc, "discrepancy diagnosis")}
     finally:
         reg.stop()
-
-
-def _nm(v):
-    return W.fmt(v, 3, "N m")
-
-
-def verdict_block(doc: dict):
-    v = verdict_summary(doc)
-    parts = [*W.render_notices([notice(f"{v['headline']}. {v['reason']}", v["level"])])]
-    if v["effect"]:
-        e = v["effect"]
-        parts.append(html.P([html.B(e["name"]), f": {e['description']}. Fitted: {v['parameters']}."]))
-        parts.append(html.Details([html.Summary("Cause and signature"), html.P(e["cause"]),
-                                   html.P(f"Signature: {e['signature']}")]))
-    if v["collapses_on"]:
-        eta = v["collapse_eta2"]
-        parts.append(html.P(f"The calibrated residual varies most with {v['collapses_on'].replace('_', ' ')}"
-                            + (f" (η² = {eta:.2f})." if eta is not None else ".")))
-    cal = doc.get("calibration") or {}
-    if cal:
-        parts.append(html.P("Calibration (scale factors on the estimated parameters): " + ", ".join(
-            f"{CALIBRATION_LABELS.get(k, k)} ×{W.fmt(x, 3)}" for k, x in cal.items()) + ".", className="hint"))
-    return parts
-
-
-def ranking_table(doc: dict):
-    rows = []
-    for r in ranking_rows(doc):
-        rows.append({
-            "rank": str(r["rank"]), "effect": r["effect"], "parameters": r["parameters"],
-            "gap": _nm(r["gap_held_out_nm"]),
-            "improvement": "—" if r["improvement_pct"] is None else f"{r['improvement_pct']:+.0f} %",
-            "penalty": _nm(r["penalty_nm"]), "score": _nm(r["score_nm"]),
-            "train": _nm(r["train_fit_nm"]), "screen": _nm(r["screen_fit_nm"]), "named": r["named"],
-            "start": r["start"] or "—",
-        })
-    cols = [("rank", "#"), ("effect", "Effect"), ("parameters", "Fitted parameters"), ("gap", "Held-out gap"),
-            ("improvement", "Improvement on held-out points"), ("penalty", "Complexity penalty"), ("score", "Score"),
-            ("train", "Training fit"), ("screen", "Screen fit"), ("start", "Fitted from")]
-    note = html.P("Ranked by score = held-out gap plus a complexity penalty per fitted parameter. Improvement is relative "
-                  "to the calibrated model without any effect; screened-out candidates were not fitted (their screen fit "
-                  "is the training residual of a linearised signature fit). Each candidate is fitted from the calibrated "
-                  "or the estimated parameters, whichever its screen fits better: from the estimated ones when the "
-                  "calibration had imitated the effect.", className="hint")
-    return [W.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
-
-
-def render(view):
-    doc = view["diagnosis"]
-    figs = discrepancy_figures(doc)
-    missing = "This diagnosis document holds no per-point data"
-
-    def fig(name):
-        return figs[name] if figs.get(name) is not None else W.empty_figure(missing)
-
-    camp = view.get("campaign") or {}
-    s = view.get("summary") or {}
-    sims = s.get("simulations", doc.get("simulations"))
-    took = W.fmt(s.get("compute_time_s", doc.get("wall_time_s")), 3, "s")
-    cards = W.summary_cards([
-        ("Verdict", doc["verdict"].replace("_", " "), doc.get("effect") or None),
-        ("Held-out gap", f"{_nm(doc.get('gap_before_nm'))} → {_nm(doc.get('gap_after_nm'))}",
-         f"noise floor {_nm(doc.get('noise_floor_nm'))}; {len(doc.get('held_out_points') or [])} held-out points"),
-        ("Campaign", camp.get("name", "—"), f"{camp.get('torsional', '?')} torsional points, {sims} simulations in {took}"),
-    ])
-    return (cards, verdict_block(doc), ranking_table(doc), fig("gap"), fig("ranking"), fig("map"), fig("profile"),
-            fig("overlays"), json.dumps({k: v for k, v in doc.items() if k not in ("points", "residuals")}, indent=1))
 
 
 SHOW_OUTPUTS = [

@@ -39,17 +39,20 @@ def full_disk(exc):
 @pytest.mark.parametrize("exc", [OSError(errno.ENOSPC, "No space left on device"),
                                  sqlite3.OperationalError("database or disk is full")])
 def test_full_disk_sweep_completes_uncached(cache_dir, monkeypatch, exc):
-    monkeypatch.setattr(diskcache.Cache, "set", full_disk(exc))
     points = make_grid(np.array([1000.0, 1100.0]) * RPM, [200.0], "2:300")
-    t0 = time.perf_counter()
-    res = run_sweep(default_parameters(), points, executor="serial", duration=1.0, window=0.4)
-    assert time.perf_counter() - t0 < SWEEP_BUDGET_S
+    # only the write is patched, and only here (undoing the whole monkeypatch would also
+    # take back the cache folder of the fixture)
+    with monkeypatch.context() as patch:
+        patch.setattr(diskcache.Cache, "set", full_disk(exc))
+        t0 = time.perf_counter()
+        res = run_sweep(default_parameters(), points, executor="serial", duration=1.0, window=0.4)
+        assert time.perf_counter() - t0 < SWEEP_BUDGET_S
     assert res.computed == 2 and res.uncached == 2 and len(res.table) == 2 * 8
     assert np.isfinite(res.table["output_amplitude_nm"]).all()
     assert "2 of 2 test points were computed but not cached" in res.cache_notice
     assert "out of disk space" in res.cache_notice and "Free disk space" in res.cache_notice
-    monkeypatch.undo()
     with sc.ResultCache() as store:
+        assert store.directory == sc.results_dir() and str(cache_dir) in str(store.directory)
         assert len(store) == 0  # nothing half-written
 
 
