@@ -85,9 +85,10 @@ SECURITY_HEADERS = {
 #: Largest request body Flask accepts [bytes]; uploads arrive base64-encoded in a
 #: callback request (parameter files up to 256 kB get a specific message from their page).
 MAX_REQUEST_BYTES = 16 * 2**20
-#: Largest body waitress buffers before Flask sees the request [bytes]: a bit of room over
-#: MAX_REQUEST_BYTES so that an oversized upload gets Flask's message naming the limit.
-MAX_BUFFERED_BYTES = 4 * MAX_REQUEST_BYTES
+#: Largest body waitress buffers (spools) per connection before Flask sees the request
+#: [bytes]: MAX_REQUEST_BYTES plus 1 MiB, the room for a request just over the limit to
+#: reach Flask, whose message names the limit; anything larger waitress cuts off itself.
+MAX_BUFFERED_BYTES = MAX_REQUEST_BYTES + 2**20
 #: Largest request line plus headers [bytes] (this caps the length of a link).
 MAX_HEADER_BYTES = 64 * 2**10
 #: Idle connections are closed after this many seconds.
@@ -139,11 +140,19 @@ def is_loopback(host: str) -> bool:
 
 
 def allow_hosts(server, names) -> None:
-    """Add ``names`` (host names or addresses) to the Host allowlist of ``server``."""
+    """Add ``names`` (host names or addresses) to the Host allowlist of ``server``. An
+    unspecified address (0.0.0.0, ::: "every interface" as a bind address) names no host
+    and is skipped."""
+    import ipaddress
+
     allowed = server.config.setdefault("DAMPERSIM_ALLOWED_HOSTS", set(LOOPBACK_HOSTS))
     for name in names or ():
         name = host_name(name) if str(name).count(":") <= 1 else str(name).strip("[]").lower()
-        if name:
+        try:
+            unspecified = ipaddress.ip_address(name).is_unspecified
+        except ValueError:
+            unspecified = False
+        if name and not unspecified:
             allowed.add(name)
 
 

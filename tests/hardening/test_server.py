@@ -97,6 +97,27 @@ def test_allow_host_extends_the_list(timed):
     assert client.get("/ok", headers={"Host": "evil.example"}).status_code == 400
 
 
+def test_unspecified_bind_address_is_no_host_name(timed):
+    """`--host 0.0.0.0` (or ::) binds every interface; it is not a name a browser sends,
+    and a Host header "0.0.0.0" reaches the server only through a crafted request."""
+    import app
+
+    server = small_app()
+    app.allow_hosts(server, ["0.0.0.0", "::", "[::]", "192.0.2.7"])
+    allowed = server.config["DAMPERSIM_ALLOWED_HOSTS"]
+    assert "0.0.0.0" not in allowed and "::" not in allowed and "192.0.2.7" in allowed
+    client = server.test_client()
+    assert client.get("/ok", headers={"Host": "0.0.0.0:8050"}).status_code == 400
+    assert client.get("/ok", headers={"Host": "[::]:8050"}).status_code == 400
+    assert client.get("/ok", headers={"Host": "192.0.2.7:8050"}).status_code == 200
+
+
+def test_waitress_buffers_little_more_than_the_request_limit(dash_app):
+    """waitress spools a body up to MAX_BUFFERED_BYTES per connection before Flask refuses
+    it: the request limit plus 1 MiB (room for Flask's message), not a multiple of it."""
+    assert dash_app.MAX_REQUEST_BYTES < dash_app.MAX_BUFFERED_BYTES <= dash_app.MAX_REQUEST_BYTES + 2**20
+
+
 def test_allowed_hosts_from_the_environment(monkeypatch, timed):
     monkeypatch.setenv("DAMPERSIM_ALLOWED_HOSTS", "team.example, other.example")
     client = small_app().test_client()
