@@ -25,7 +25,7 @@ from dampersim import costs
 
 WALL = 2.0
 MEM = 20e6
-PATH = re.compile(r"(?<![\w.])/(?:work|tmp|home|root|usr|var|opt)/")
+PATH = re.compile(r"(?<![\w.])/(?:work|tmp|home|root|usr|var|opt|srv)/")
 RANGE = "300:6000:0.05701"  # about 100 000 speeds per item
 
 
@@ -293,7 +293,7 @@ def test_errors_reach_the_page_without_traceback_or_path(pages, monkeypatch):
     from dampersim.views.state import parse_query
 
     def boom(*a, **k):
-        raise RuntimeError("failed at /work/secret/server/file.py line 3")
+        raise RuntimeError("failed at /srv/secret/server/file.py line 3")
 
     state, _ = parse_query("colourmap", {"speeds": "1500", "duration": "1.2", "window": "0.5"})
     monkeypatch.setattr(C, "colourmap_view", boom)
