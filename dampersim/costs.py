@@ -37,6 +37,8 @@ from __future__ import annotations
 
 import math
 import os
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from dampersim.errors import InputError
@@ -45,10 +47,17 @@ from dampersim.solver.layout import NREC
 #: Kernel speed [step·DOF per second of one core], measured as the module docstring says.
 STEP_DOF_PER_SECOND = 5.0e7
 #: Most work [step·DOF] a page computes in the request thread while the browser waits
-#: (Explorer, Segments), whatever the server's budget: about 60 s of one core, so a few
-#: such requests cannot hold every request thread for long. Larger points belong to the
-#: command line (``dampersim simulate``).
+#: (Explorer, Segments), whatever the server's budget: about 60 s of one core, so one
+#: such request holds its thread for about a minute at most. Larger points belong to the
+#: command line (``dampersim simulate``). How many run at once is bounded separately by
+#: :func:`foreground_slot`, so they never take every request thread.
 FOREGROUND_WORK = 60.0 * STEP_DOF_PER_SECOND
+#: Foreground computations running at once in one server process, by default: half of
+#: ``app.py``'s 8 request threads, so the other half always answers page loads, cache
+#: hits, job polls and static files. Setting: ``DAMPERSIM_FOREGROUND_SLOTS`` (read at
+#: call time; set it to about half of ``--threads`` when changing those).
+DEFAULT_FOREGROUND_SLOTS = max(1, 8 // 2)
+FOREGROUND_SLOTS_ENV = "DAMPERSIM_FOREGROUND_SLOTS"
 #: Default autostart budget [step·DOF]: about 24 s of one core.
 DEFAULT_AUTOSTART = 1.2e9
 #: Default limit [step·DOF]: about 15 minutes of one core.
@@ -336,9 +345,67 @@ def admit(cost: Cost, budget: Budgets | None = None, *, foreground: bool = False
     return "ask" if cost.work > budget.autostart else "run"
 
 
+# --------------------------------------------------------------------------- foreground slots
+class ServerBusy(InputError):
+    """Every foreground slot is taken: nothing was computed, the page keeps its results."""
+
+    def __init__(self, slots: int):
+        self.slots = int(slots)
+        super().__init__(f"the server is busy with {self.slots} other interactive computation"
+                         f"{'s' if self.slots != 1 else ''}; try again in a moment (at most {self.slots} run at once: "
+                         f"{FOREGROUND_SLOTS_ENV})")
+
+    def __reduce__(self):
+        return (type(self), (self.slots,))
+
+
+_SLOTS_LOCK = threading.Lock()
+_SEMAPHORES: dict = {}
+
+
+def foreground_slots() -> int:
+    """Foreground computations allowed at once (``DAMPERSIM_FOREGROUND_SLOTS``, read now;
+    default :data:`DEFAULT_FOREGROUND_SLOTS`). Raises InputError naming the variable, its
+    value and what is accepted."""
+    raw = os.environ.get(FOREGROUND_SLOTS_ENV)
+    if raw is None or not raw.strip():
+        return DEFAULT_FOREGROUND_SLOTS
+    try:
+        value = int(raw.strip())
+    except ValueError:
+        value = 0
+    if value < 1:
+        shown = raw if len(raw) <= 40 else raw[:40] + "…"
+        raise InputError(f"{FOREGROUND_SLOTS_ENV} = {shown!r}: accepted is a whole number of at least 1, "
+                         f"e.g. {DEFAULT_FOREGROUND_SLOTS} (half the server's request threads)")
+    return value
+
+
+@contextmanager
+def foreground_slot():
+    """Hold one of the :func:`foreground_slots` of this process while a page computes in
+    its request thread. Never waits: when every slot is taken it raises :class:`ServerBusy`
+    at once, before anything is computed (a waiting request would hold its thread all the
+    same). Wrap only the computation, not a cache hit."""
+    slots = foreground_slots()
+    with _SLOTS_LOCK:
+        sem = _SEMAPHORES.setdefault(slots, threading.BoundedSemaphore(slots))
+    if not sem.acquire(blocking=False):
+        raise ServerBusy(slots)
+    try:
+        yield
+    finally:
+        sem.release()
+
+
 __all__ = [
     "STEP_DOF_PER_SECOND",
     "FOREGROUND_WORK",
+    "DEFAULT_FOREGROUND_SLOTS",
+    "FOREGROUND_SLOTS_ENV",
+    "ServerBusy",
+    "foreground_slots",
+    "foreground_slot",
     "DEFAULT_AUTOSTART",
     "DEFAULT_LIMIT",
     "DEFAULT_BYTES_LIMIT",

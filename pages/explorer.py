@@ -125,7 +125,9 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     only on ``run``: ``pending`` is True and a notice gives the estimate. A link's refused
     values have already fallen back to their defaults (the URL contract), which run.
     ``repeat`` (the "Repeatability runs" box; None = off) runs the point K times, so the
-    cost checked is K runs.
+    cost checked is K runs. A point to compute takes one of the server's foreground slots
+    (:func:`dampersim.costs.foreground_slot`); when none is free nothing runs, ``error``
+    and ``busy`` are set and a notice says the server is busy (a cache hit needs no slot).
     """
     notices = []
     orders_text, notes = orders_text_from_rows(ks, amps, phases)
@@ -147,7 +149,14 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
                 notices.append(J.cost_notice(cost, decision, "Run"))
                 return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": to_query(PAGE, state),
                         "params": state["params"], "error": None, "pending": True, "state": state}
-        view = explorer_view(system, state)
+            with costs.foreground_slot():  # ServerBusy at once when every slot computes
+                view = explorer_view(system, state)
+        else:
+            view = explorer_view(system, state)  # a cache hit takes no slot
+    except costs.ServerBusy as exc:
+        notices.append(notice(f"Not computed: {exc}. The previous results are kept.", "warning"))
+        return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
+                "error": str(exc), "state": state, "pending": False, "busy": True}
     except costs.BudgetError as exc:
         notices.append(J.budget_refusal(exc))
         return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,

@@ -76,7 +76,8 @@ def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, 
 
     As the Explorer's: above the server's budget (or the foreground limit) ``error`` is set
     and nothing runs; above the autostart budget ``pending`` is True, a notice gives the
-    estimate and the point computes only on ``run``."""
+    estimate and the point computes only on ``run``; with every foreground slot taken
+    ``busy`` is set and nothing runs."""
     orders_text, notices = orders_text_from_rows(ks, amps, phases)
     state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
                                              "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
@@ -89,7 +90,13 @@ def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, 
             if not run and decision == "ask":
                 notices.append(J.cost_notice(cost, decision, "Run"))
                 return {"view": None, "state": state, "notices": notices, "error": None, "pending": True}
-        view = segments_view(system, state)
+            with costs.foreground_slot():  # ServerBusy at once when every slot computes
+                view = segments_view(system, state)
+        else:
+            view = segments_view(system, state)  # a cache hit takes no slot
+    except costs.ServerBusy as exc:
+        notices.append(notice(f"Not computed: {exc}. The previous results are kept.", "warning"))
+        return {"view": None, "state": state, "notices": notices, "error": str(exc), "pending": False, "busy": True}
     except costs.BudgetError as exc:
         notices.append(J.budget_refusal(exc))
         return {"view": None, "state": state, "notices": notices, "error": public_message(exc), "pending": False}
