@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,6 +16,7 @@ from dampersim.excitation import MeasuredTorque
 from dampersim.signal import lowpass_first_order, order_amplitudes
 from dampersim.simulation import simulate
 from dampersim.solver.linear import max_stable_time_step
+from dampersim import jobs
 from dampersim.sweeps.backends import process_pool
 
 ORDERS = tuple(float(k) for k in range(1, 9))
@@ -112,10 +112,14 @@ def _task(args):
 
 
 class Runner:
-    """Runs (system, point) tasks serially or in a process pool; counts simulations."""
+    """Runs (system, point) tasks serially or in a process pool; counts simulations.
+
+    ``workers`` None: up to 2 processes, fewer when the cores are shared with other
+    running jobs (:func:`dampersim.jobs.sweep_workers`; all cores count when no job runs,
+    as on the command line)."""
 
     def __init__(self, workers: int | None = None, progress=None):
-        self.workers = max(1, int(workers if workers is not None else min(2, os.cpu_count() or 1)))
+        self.workers = max(1, int(workers if workers is not None else min(2, jobs.sweep_workers())))
         self.progress = progress
         self.count = 0
         self._pool = None

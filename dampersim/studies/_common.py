@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import logging
 import math
 import time
 
@@ -10,13 +10,16 @@ import diskcache
 import numpy as np
 
 from dampersim.errors import InputError
-from dampersim import keys
-from dampersim.locations import cache_dir
+from dampersim import jobs, keys
+from dampersim.locations import private_dir
+from dampersim.safestore import JsonDisk
 from dampersim.sweeps.cache import key_parts
-from dampersim.sweeps.backends import cpu_count, process_pool
+from dampersim.sweeps.backends import process_pool
 from dampersim.sweeps.executor import SweepCancelled, run_sweep
 from dampersim.sweeps.grid import TestPoint
 from dampersim.units import rpm_to_rad_s
+
+LOGGER = logging.getLogger("dampersim.studies")
 
 #: Speeds [rpm] over which the thesis validated the model (rig limit 3000 rpm, §7.1.3).
 VALIDATED_RPM = (500.0, 3000.0)
@@ -66,11 +69,20 @@ def warn_speeds(rpms, prog: Progress):
         )
 
 
+def pool_workers() -> int:
+    """Processes a study's pool may use: the cores shared with the other running jobs
+    (:func:`dampersim.jobs.sweep_workers`; all cores when no job runs, as on the command line)."""
+    return jobs.sweep_workers()
+
+
 def mr_sweep(system, points, prog: Progress, executor, cancel=None, orders=None):
-    """run_sweep over ``points`` (cached); returns its table."""
+    """run_sweep over ``points`` (cached); returns its table. A process pool gets
+    :func:`pool_workers` processes."""
     kw = {}
     if orders is not None:
         kw["orders"] = orders
+    if executor == "processes":
+        kw["workers"] = pool_workers()
     res = run_sweep(system, points, executor=executor, progress=prog.sweep_callback(), cancel=cancel, **kw)
     prog.add(res.n_points, res.from_cache)
     return res.table
@@ -93,8 +105,24 @@ def pct(a, b) -> float:
 
 
 # ----------------------------------------------------------------- cached single runs
+#: Folder of the study cache under :func:`dampersim.locations.cache_dir`.
+STUDIES_SUBDIR = "studies"
+
+
 def _store():
-    return diskcache.Cache(str(cache_dir() / "studies"))
+    """The study cache: a private folder (0700, refused when others may write it) and JSON
+    rows (:class:`dampersim.safestore.JsonDisk`), never pickle."""
+    return diskcache.Cache(str(private_dir(STUDIES_SUBDIR)), disk=JsonDisk)
+
+
+def _lookup(store, key):
+    """The stored run under ``key``, or None when missing or refused (a pickled or foreign
+    row, or one of an older format, is never read: the run is computed again)."""
+    try:
+        return store.get(key, default=None, retry=True)
+    except (ValueError, TypeError, UnicodeDecodeError) as exc:
+        LOGGER.warning("study cache entry %s refused (%s); computing it again", key[:12], exc)
+        return None
 
 
 def run_key(tag, fn, system, excitation, duration) -> str:
@@ -105,29 +133,31 @@ def run_key(tag, fn, system, excitation, duration) -> str:
 
 
 def cached_runs(tag, fn, jobs, prog: Progress, parallel: bool, cancel=None):
-    """Evaluate ``fn(system, excitation, duration)`` -> JSON-able dict for each job
+    """Evaluate ``fn(system, excitation, duration)`` -> JSON-able dict (see
+    :mod:`dampersim.safestore`; tuples and numpy arrays come back as such) for each job
     ``(system, excitation, duration)``, from the study cache when present; in a process
-    pool when ``parallel``."""
+    pool of :func:`pool_workers` processes when ``parallel``."""
     run_keys = [run_key(tag, fn, *j) for j in jobs]
     out = [None] * len(jobs)
     todo = []
     with _store() as store:
         for i, k in enumerate(run_keys):
-            v = store.get(k)
+            v = _lookup(store, k)
             if v is not None:
-                out[i] = json.loads(v)
+                out[i] = v
             else:
                 todo.append(i)
     prog.add(len(jobs) - len(todo), len(jobs) - len(todo))
 
     def save(i, value):
         with _store() as store:
-            store.set(run_keys[i], json.dumps(value))
+            store.set(run_keys[i], value, retry=True)
         out[i] = value
         prog.add(1)
 
-    if todo and parallel and len(todo) > 1:
-        with process_pool(min(cpu_count(), len(todo))) as pool:
+    workers = min(pool_workers(), len(todo)) if (todo and parallel) else 1
+    if workers > 1:
+        with process_pool(workers) as pool:
             futs = {pool.submit(fn, *jobs[i]): i for i in todo}
             for f in futs:
                 if _cancelled(cancel):

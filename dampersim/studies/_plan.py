@@ -84,7 +84,9 @@ class RunsStep:
 
     def cost(self, workers: int | None = None) -> costs.Cost:
         """Work [step·DOF]: the sum over the jobs. Bytes [B]: ``workers`` runs in flight
-        (default: the cores, as :func:`~dampersim.studies._common.cached_runs` sizes its pool), each of the largest run."""
+        (default: all usable cores, the most :func:`~dampersim.studies._common.cached_runs`
+        gives its pool: it shares them with the other running jobs, so it uses as many or
+        fewer), each of the largest run."""
         if not self.jobs:
             return costs.Cost(0.0, 0.0)
         each = [costs.point_cost(s, d, record_segments=self.record_segments) for s, _ex, d in self.jobs]

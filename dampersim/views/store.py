@@ -24,13 +24,10 @@ just computes its view again.
 
 from __future__ import annotations
 
-import base64
 import functools
 import hashlib
 import inspect
-import json
 import logging
-import math
 import os
 import re
 import sqlite3
@@ -45,6 +42,7 @@ from dampersim import keys
 from dampersim.errors import InputError
 from dampersim.parameters import dumps_toml, to_dict
 from dampersim.locations import cache_dir, private_dir
+from dampersim.safestore import JSON_MAGIC, JsonDisk, decode_json, encode_json
 
 LOGGER = logging.getLogger("dampersim.views.store")
 
@@ -64,59 +62,12 @@ _LOCK = threading.Lock()
 RECOVERIES: list = []
 
 # --------------------------------------------------------------------------- encoding
-_JSON_MAGIC = b"DSV1J\n"
 _RESULT_MAGIC = b"DSV1R\n"
-_ARRAY_TAG = "__ndarray__"
-_TUPLE_TAG = "__tuple__"
-
-
-def _encode_obj(obj):
-    """``obj`` as JSON-able data; numpy arrays tagged (base64, dtype, shape)."""
-    if isinstance(obj, dict):
-        return {str(k): _encode_obj(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_encode_obj(v) for v in obj]
-    if isinstance(obj, tuple):
-        return {_TUPLE_TAG: [_encode_obj(v) for v in obj]}
-    if isinstance(obj, np.ndarray):
-        if obj.dtype.kind in "biufc":
-            arr = np.ascontiguousarray(obj)
-            return {_ARRAY_TAG: base64.b64encode(arr.tobytes()).decode("ascii"), "dtype": arr.dtype.str,
-                    "shape": list(arr.shape)}
-        return _encode_obj(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.floating):
-        return float(obj)
-    if obj is None or isinstance(obj, (str, int, float)):
-        return obj
-    to_plotly = getattr(obj, "to_plotly_json", None)  # plotly figures and graph objects
-    if callable(to_plotly):
-        return _encode_obj(to_plotly())
-    raise TypeError(f"a view value of type {type(obj).__name__} cannot be stored as JSON")
-
-
-def _decode_obj(obj):
-    if isinstance(obj, dict):
-        if _ARRAY_TAG in obj and set(obj) == {_ARRAY_TAG, "dtype", "shape"}:
-            dtype = np.dtype(obj["dtype"])
-            if dtype.kind not in "biufc":
-                raise ValueError(f"stored array of dtype {dtype} refused")
-            raw = base64.b64decode(obj[_ARRAY_TAG])
-            return np.frombuffer(raw, dtype=dtype).reshape(obj["shape"]).copy()
-        if set(obj) == {_TUPLE_TAG}:
-            return tuple(_decode_obj(v) for v in obj[_TUPLE_TAG])
-        return {k: _decode_obj(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_decode_obj(v) for v in obj]
-    return obj
 
 
 def encode_value(value) -> bytes:
-    """The bytes a store keeps for ``value`` (JSON, or Parquet for a SimulationResult).
-    Raises TypeError for a value that is neither."""
+    """The bytes a store keeps for ``value`` (JSON, see :mod:`dampersim.safestore`, or
+    Parquet for a SimulationResult). Raises TypeError for a value that is neither."""
     from dampersim.results import SimulationResult
 
     if isinstance(value, SimulationResult):
@@ -128,15 +79,14 @@ def encode_value(value) -> bytes:
                 return _RESULT_MAGIC + fh.read()
         finally:
             _unlink(tmp)
-    text = json.dumps(_encode_obj(value), separators=(",", ":"), allow_nan=True)
-    return _JSON_MAGIC + text.encode("ascii")
+    return encode_json(value)
 
 
 def decode_value(data: bytes):
     """Inverse of :func:`encode_value`; raises ValueError for anything else."""
     data = bytes(data)
-    if data.startswith(_JSON_MAGIC):
-        return _decode_obj(json.loads(data[len(_JSON_MAGIC):].decode("ascii")))
+    if data.startswith(JSON_MAGIC):
+        return decode_json(data)
     if data.startswith(_RESULT_MAGIC):
         from dampersim.results import SimulationResult
 
@@ -157,35 +107,14 @@ def _unlink(path):
         pass
 
 
-class SafeDisk(diskcache.Disk):
-    """diskcache serialisation without pickle: text/number keys only, values through
-    :func:`encode_value`; a pickled row is refused instead of unpickled."""
+class SafeDisk(JsonDisk):
+    """diskcache serialisation without pickle (:class:`dampersim.safestore.JsonDisk`),
+    values through :func:`encode_value`: JSON, or Parquet for a SimulationResult."""
 
-    def put(self, key):
-        if type(key) not in (str, bytes, int, float):
-            raise TypeError(f"cache key of type {type(key).__name__}: accepted are text keys")
-        return super().put(key)
+    def encode(self, value) -> bytes:
+        return encode_value(value)
 
-    def get(self, key, raw):
-        if not raw:
-            raise ValueError("pickled cache key refused")
-        return super().get(key, raw)
-
-    def store(self, value, read, key=diskcache.core.UNKNOWN):
-        if read:
-            raise TypeError("file values are not stored in the view cache")
-        return super().store(encode_value(value), False, key=key)
-
-    def fetch(self, mode, filename, value, read):
-        if mode == diskcache.core.MODE_PICKLE:
-            raise ValueError("pickled cache entry refused")
-        if read:
-            raise TypeError("file values are not read from the view cache")
-        data = super().fetch(mode, filename, value, False)
-        if isinstance(data, str):
-            data = data.encode("utf-8")
-        if not isinstance(data, (bytes, bytearray)):
-            raise ValueError("stored entry is not a dampersim view")
+    def decode(self, data: bytes):
         return decode_value(data)
 
 
