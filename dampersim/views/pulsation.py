@@ -5,6 +5,7 @@ and order content with a summary line) and the dominant engine order over speed
 
 from __future__ import annotations
 
+from dampersim import costs
 from dampersim.errors import InputError
 from dampersim.excitation.pulsation import SPEED_LIMITS_RPM, check_speed_rpm, pressure_warnings
 from dampersim.parameters.engine import PRESSURE_LIMITS_BAR, check_pressure_bar
@@ -92,10 +93,13 @@ def pulsation_view(pressure, speed, coupled) -> dict:
 
     Returns {"figures": [output torque, cylinder pressure, order content], "summary": one
     line of text, "warnings": [values outside the range the thesis validated]}. Raises
-    ParameterError / InputError naming a pressure or speed outside the model's range.
+    ParameterError / InputError naming a pressure or speed outside the model's range, and
+    :class:`~dampersim.costs.BudgetError` (estimate and limit) when the run is above the
+    server's budget or the foreground limit (it computes in the request thread).
     """
     p = check_pressure_bar(pressure)
     warns = check_speed_rpm(speed, warn=False) + pressure_warnings(p)
+    costs.admit(costs.pulsation_cost(_flag(coupled)), foreground=True)  # computed while the browser waits
     res = simulate_pulsation(rpm_to_rad_s(float(speed)), p, MEAN_TORQUE_NM, coupled=_flag(coupled))
     figures = pulsation_figures(res)
     s = res.summary()
@@ -106,7 +110,10 @@ def pulsation_view(pressure, speed, coupled) -> dict:
 
 def dominant_order_view(pressure, coupled, progress=None):
     """The amplitudes of orders 2, 4 and 6 over :data:`SWEEP_SPEEDS_RPM` ([thesis] Fig. 4.12)
-    as a figure; ``progress(done, total)`` after each speed."""
+    as a figure; ``progress(done, total)`` after each speed. BudgetError (estimate and
+    limit) when the runs are above the server's budget."""
+    costs.admit(costs.pulsation_cost(_flag(coupled), runs=len(SWEEP_SPEEDS_RPM),
+                                     what=f"the dominant order over {len(SWEEP_SPEEDS_RPM)} speeds"))
     rows = dominant_order_over_speed(SWEEP_SPEEDS_RPM, check_pressure_bar(pressure), MEAN_TORQUE_NM, _flag(coupled),
                                      tuple(float(k) for k in DOMINANT_ORDERS), progress=progress)
     return dominant_order_figure(rows)
