@@ -225,7 +225,8 @@ def file_shape(fpath, rel: str = "", max_lines: int | None = None) -> dict:
     loaded: the Parquet footer (its length checked first) or the CSV header line and a line
     count that stops after ``max_lines`` lines (``rows`` is then ``max_lines + 1``, i.e.
     "more than"). Returns {"rows", "columns" (names), "bytes", "more"}; InputError for a
-    file that is neither, or a damaged one."""
+    file that is neither, or a damaged one (a Parquet file whose file-level row count
+    differs from the sum over its row groups included)."""
     rel = rel or os.path.basename(fpath)
     low = fpath.lower()
     if low.endswith(".parquet"):
@@ -246,8 +247,14 @@ def file_shape(fpath, rel: str = "", max_lines: int | None = None) -> dict:
                                  f"{MAX_PARQUET_FOOTER_BYTES // 2**20} MB of metadata")
             meta = pq.ParquetFile(fpath, memory_map=False).metadata
             names = [meta.schema.column(i).name for i in range(meta.num_columns)]
-            nbytes = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
-            return {"rows": int(meta.num_rows), "columns": names, "bytes": int(nbytes), "more": False}
+            groups = [meta.row_group(i) for i in range(meta.num_row_groups)]
+            nbytes = sum(g.total_byte_size for g in groups)
+            rows = sum(int(g.num_rows) for g in groups)  # what a reader loads, whatever the file-level count says
+            if rows != int(meta.num_rows):
+                raise InputError(f"{rel}: the Parquet footer gives {int(meta.num_rows)} rows but its row groups hold "
+                                 f"{rows}; accepted is a file whose row count matches its row groups (this one is "
+                                 "damaged or crafted)")
+            return {"rows": rows, "columns": names, "bytes": int(nbytes), "more": False}
         except InputError:
             raise
         except Exception as exc:  # noqa: BLE001 - a damaged file is bad input
