@@ -4,7 +4,8 @@ For each session count a fresh server (``python app.py`` on loopback, its own em
 folder, the job limits given below) is started; every session opens one of four colourmap
 links (so sessions ``i`` and ``i + 4`` ask for the identical sweep) and follows the sweep
 the way the browser does (page layout, request callback, background job, polls until the
-result). Meanwhile a probe requests a light page (``/_dash-dependencies``) every 0.1 s.
+result). Meanwhile a probe loads a light page as a browser does (the Explorer's HTML, the app
+layout and the ``_pages_content`` callback) every 0.1 s.
 Printed per session count:
 
 - probe latency p50 / p95 [ms] while the sweeps run;
@@ -46,10 +47,11 @@ def main(argv=None) -> int:
     for n in counts:
         with tempfile.TemporaryDirectory() as tmp:
             proc, base = start_server(Path(tmp) / "cache", *server_args)
+            out = {}
             try:
                 out = run_load(base, proc.pid, n, points=args.points, duration=args.duration, deadline_s=args.deadline)
             finally:
-                orphans = stop_server(proc)
+                orphans = stop_server(proc, seen=out.get("seen", ()))
         print(f"{n:>8} {1e3 * out['latency_p50_s']:>8.1f} {1e3 * out['latency_p95_s']:>8.1f} {out['max_jobs']:>5} "
               f"{out['max_processes']:>6} {out['peak_rss_mb']:>8.0f} {out['finished']:>3}/{n:<2} {out['wall_s']:>8.1f} "
               f"{len(orphans):>8}")

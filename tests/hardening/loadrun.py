@@ -54,13 +54,21 @@ def start_server(cache_dir, *args, port=None, env=None, ready_s=180.0):
     raise RuntimeError("the server did not answer in time")
 
 
-def stop_server(proc, timeout=20.0) -> list:
+def stop_server(proc, timeout=20.0, seen=()) -> list:
     """SIGTERM the server, wait; returns the pids of its descendants still alive after it
-    stopped (orphans), killing them so a failed test leaves nothing behind."""
+    stopped (orphans), killing them so a failed test leaves nothing behind.
+
+    The descendants checked are the server's process tree as it is when the stop begins
+    plus ``seen`` (psutil processes recorded earlier, e.g. :attr:`Monitor.seen` while jobs
+    were running), so a job process that left the tree (its parent gone, re-parented to
+    init) still counts. psutil matches a pid with its start time, so a reused pid is not
+    taken for an orphan."""
     try:
         kids = psutil.Process(proc.pid).children(recursive=True)
     except psutil.NoSuchProcess:
         kids = []
+    known = {k.pid for k in kids}
+    kids += [k for k in seen if k.pid not in known and k.pid != proc.pid]
     proc.terminate()
     try:
         proc.wait(timeout)
@@ -68,7 +76,13 @@ def stop_server(proc, timeout=20.0) -> list:
         proc.kill()
         proc.wait(5)
     time.sleep(0.5)
-    alive = [k for k in kids if k.is_running() and k.status() != psutil.STATUS_ZOMBIE]
+    alive = []
+    for k in kids:
+        try:
+            if k.is_running() and k.status() != psutil.STATUS_ZOMBIE:
+                alive.append(k)
+        except psutil.NoSuchProcess:
+            pass
     for k in alive:
         try:
             k.kill()
@@ -96,6 +110,9 @@ class Monitor(threading.Thread):
         self.max_procs = 0
         self.max_rss = 0
         self.job_pids = set()
+        #: every process of the tree seen so far, by pid (for :func:`stop_server`)
+        self.seen = {}
+        self.jobs_now = 0
         self.stop_flag = threading.Event()
 
     def run(self):
@@ -121,6 +138,9 @@ class Monitor(threading.Thread):
                         rss += p.memory_info().rss
                     except psutil.NoSuchProcess:
                         pass
+                for p in tree[1:]:
+                    self.seen.setdefault(p.pid, p)
+                self.jobs_now = len(jobs)
                 self.max_jobs = max(self.max_jobs, len(jobs))
                 self.job_pids.update(p.pid for p in jobs)
                 self.max_procs = max(self.max_procs, len(tree))
@@ -139,27 +159,27 @@ def _percentile(values, q):
     return s[min(len(s) - 1, int(round(q * (len(s) - 1))))]
 
 
-def run_load(base: str, server_pid: int, sessions: int, distinct: int = 4, deadline_s: float = 300.0,
-             points: int = 6, duration: float = 8.0) -> dict:
-    """``sessions`` sessions open ``distinct`` different sweep links (round robin) at once;
-    a probe requests ``/_dash-dependencies`` (a light page request) every 0.1 s meanwhile.
+#: The page the probe loads as the light page request.
+PROBE_PAGE = "/explorer?speed=1500&torque=200"
 
-    Returns a dict: latency_p50_s, latency_p95_s (probe), probe_count, max_jobs,
-    jobs_started (distinct job processes seen), max_processes, peak_rss_mb (server tree), finished (sessions whose sweep answered),
-    failed (list of (session, status, text)), wall_s.
-    """
-    monitor = Monitor(server_pid)
-    monitor.start()
-    latencies, stop = [], threading.Event()
 
-    def probe():
-        s = DashSession(base, timeout=30)
-        while not stop.is_set():
-            r = s.request("/_dash-dependencies")
-            latencies.append(r.seconds)
-            time.sleep(0.1)
+def load_page(s: DashSession, link: str = PROBE_PAGE) -> float:
+    """Load ``link`` as a browser does (the page's HTML, then the ``_pages_content``
+    callback that returns its layout, :meth:`DashSession.open`; the layout and
+    dependencies of the app once per session); returns the seconds it took, or raises
+    when a step failed."""
+    t0 = time.perf_counter()
+    out = s.open(link)
+    seconds = time.perf_counter() - t0
+    if out.status != 200 or not s.layout:
+        raise RuntimeError(f"loading {link} answered {out.status}: {out.text[:200]}")
+    return seconds
 
-    results = {}
+
+def start_sweeps(base: str, sessions: int, distinct: int, points: int, duration: float, deadline_s: float,
+                 results: dict) -> list:
+    """Threads (started) in which ``sessions`` sessions open ``distinct`` sweep links and
+    poll their jobs until they answer or ``deadline_s``; outcomes go to ``results``."""
 
     def session(i):
         s = DashSession(base, timeout=60)
@@ -178,12 +198,41 @@ def run_load(base: str, server_pid: int, sessions: int, distinct: int = 4, deadl
         except Exception as exc:  # recorded, the run goes on
             results[i] = ("exception", 0, repr(exc))
 
-    t0 = time.perf_counter()
-    prober = threading.Thread(target=probe, daemon=True)
-    prober.start()
     threads = [threading.Thread(target=session, args=(i,), daemon=True) for i in range(sessions)]
     for t in threads:
         t.start()
+    return threads
+
+
+def run_load(base: str, server_pid: int, sessions: int, distinct: int = 4, deadline_s: float = 300.0,
+             points: int = 6, duration: float = 8.0) -> dict:
+    """``sessions`` sessions open ``distinct`` different sweep links (round robin) at once;
+    a probe loads a page (:func:`load_page`, :data:`PROBE_PAGE`: a light page request)
+    every 0.1 s meanwhile.
+
+    Returns a dict: latency_p50_s, latency_p95_s (probe), probe_count, probe_errors, max_jobs,
+    jobs_started (distinct job processes seen), max_processes, peak_rss_mb (server tree), finished (sessions whose sweep answered),
+    failed (list of (session, status, text)), wall_s, seen (every process of the server's
+    tree seen, for :func:`stop_server`).
+    """
+    monitor = Monitor(server_pid)
+    monitor.start()
+    latencies, errors, stop = [], [], threading.Event()
+
+    def probe():
+        s = DashSession(base, timeout=30)
+        while not stop.is_set():
+            try:
+                latencies.append(load_page(s))
+            except Exception as exc:  # counted, the probe goes on
+                errors.append(repr(exc)[:200])
+            time.sleep(0.1)
+
+    results = {}
+    t0 = time.perf_counter()
+    prober = threading.Thread(target=probe, daemon=True)
+    prober.start()
+    threads = start_sweeps(base, sessions, distinct, points, duration, deadline_s, results)
     for t in threads:
         t.join(deadline_s)
     wall = time.perf_counter() - t0
@@ -197,6 +246,7 @@ def run_load(base: str, server_pid: int, sessions: int, distinct: int = 4, deadl
         "latency_p50_s": _percentile(latencies, 0.5),
         "latency_p95_s": _percentile(latencies, 0.95),
         "probe_count": len(latencies),
+        "probe_errors": errors,
         "max_jobs": monitor.max_jobs,
         "jobs_started": len(monitor.job_pids),
         "max_processes": monitor.max_procs,
@@ -204,7 +254,9 @@ def run_load(base: str, server_pid: int, sessions: int, distinct: int = 4, deadl
         "finished": sum(1 for kind, _, _ in results.values() if kind == "ok"),
         "failed": failed,
         "wall_s": wall,
+        "seen": list(monitor.seen.values()),
     }
 
 
-__all__ = ["free_port", "start_server", "stop_server", "sweep_link", "Monitor", "run_load"]
+__all__ = ["free_port", "start_server", "stop_server", "sweep_link", "Monitor", "PROBE_PAGE", "load_page", "start_sweeps",
+           "run_load"]
