@@ -9,11 +9,14 @@ transaction.
 
 * :meth:`JobRegistry.submit` queues a job for a session, or, when a queued or running job
   has the same work key, attaches the caller to it as another *waiter* (no new process).
+  The queue is capped per session and in total: above a cap the job is refused at once
+  (recorded as failed, with the reason; no process).
 * :meth:`JobRegistry.dispatch` starts queued jobs, oldest first, while fewer than
   ``max_jobs`` run in total and fewer than ``per_session`` run for the job's session; the
   other jobs stay queued (no process exists for them). The caller supplies the function
   that starts the process; the registry records its pid and its creation time, so a pid
-  reused by an unrelated process is never signalled.
+  reused by an unrelated process is never signalled. A process whose job was cancelled
+  between its claim and that record is terminated at once.
 * :meth:`JobRegistry.heartbeat` records that a waiter still polls. :meth:`JobRegistry.reap`
   cancels jobs nobody has polled for ``idle_timeout_s`` seconds (terminating the process
   and its whole process group, i.e. its pool workers, or dropping it from the queue), and
@@ -26,18 +29,20 @@ transaction.
 
 Settings: ``max_jobs`` (default: the number of usable cores, or ``$DAMPERSIM_MAX_JOBS``),
 ``per_session`` (default 2, or ``$DAMPERSIM_JOBS_PER_SESSION``), ``idle_timeout_s``
-(default 30 s; dashboards poll every 0.3-1 s). A bad value raises
+(default 30 s; dashboards poll every 0.3-1 s), ``queued_per_session`` (default 4) and
+``max_queued`` (default 64). A bad value raises
 :class:`~dampersim.errors.InputError` naming the variable, the value and what is accepted.
 
 Job processes are expected to call :func:`os.setsid` first, so that the process id is
-also the id of a process group holding everything the job started.
+also the id of a process group holding everything the job started (see
+:mod:`dampersim.jobprocs`, which signals them).
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import secrets
-import signal
 import sqlite3
 import threading
 import time
@@ -45,6 +50,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dampersim.errors import InputError
+from dampersim.jobprocs import TERM_GRACE_S, process_alive, process_ctime, terminate_tree, usable_cores
+
+LOGGER = logging.getLogger("dampersim.jobs")
 
 #: Environment variable: most jobs running at once on this machine (whole number).
 MAX_JOBS_ENV = "DAMPERSIM_MAX_JOBS"
@@ -62,8 +70,12 @@ BUSY_TIMEOUT_S = 10.0
 KEEP_FINISHED_S = 3600.0
 #: Seconds a claimed job may stay without a recorded process before it counts as failed.
 START_GRACE_S = 30.0
-#: Seconds between SIGTERM and SIGKILL when a job is terminated.
-TERM_GRACE_S = 0.5
+#: Default most queued (not yet running) jobs of one session; more are refused.
+DEFAULT_QUEUED_PER_SESSION = 4
+#: Default most queued jobs in total; more are refused.
+DEFAULT_MAX_QUEUED = 64
+#: Upper bound of the total queue cap.
+MAX_QUEUED_LIMIT = 65536
 
 QUEUED, RUNNING, DONE, FAILED, CANCELLED = "queued", "running", "done", "failed", "cancelled"
 ACTIVE = (QUEUED, RUNNING)
@@ -104,13 +116,6 @@ CREATE INDEX IF NOT EXISTS waiters_cache ON waiters (cache_key, created);
 
 
 # --------------------------------------------------------------------------- settings
-def usable_cores() -> int:
-    """Cores this process may run on (CPU affinity where the OS has it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
-
-
 def _whole(name: str, value, lo: int, hi: int) -> int:
     accepted = f"a whole number from {lo} to {hi}"
     if isinstance(value, bool):
@@ -138,16 +143,20 @@ def _setting(name: str, env: str, value, default: int, lo: int, hi: int) -> int:
 @dataclass(frozen=True)
 class Limits:
     """Validated settings of a registry: ``max_jobs`` running jobs in total,
-    ``per_session`` per browser session, cancel after ``idle_timeout_s`` [s] unpolled."""
+    ``per_session`` per browser session, cancel after ``idle_timeout_s`` [s] unpolled;
+    at most ``queued_per_session`` queued jobs per session and ``max_queued`` in total."""
 
     max_jobs: int
     per_session: int
     idle_timeout_s: float
+    queued_per_session: int = DEFAULT_QUEUED_PER_SESSION
+    max_queued: int = DEFAULT_MAX_QUEUED
 
     @classmethod
-    def resolve(cls, max_jobs=None, per_session=None, idle_timeout_s=None) -> "Limits":
+    def resolve(cls, max_jobs=None, per_session=None, idle_timeout_s=None, queued_per_session=None,
+                max_queued=None) -> "Limits":
         """Explicit values first, then ``$DAMPERSIM_MAX_JOBS`` / ``$DAMPERSIM_JOBS_PER_SESSION``,
-        then the defaults (usable cores, 2, 30 s)."""
+        then the defaults (usable cores, 2, 30 s, 4 and 64 queued)."""
         jobs = _setting("max_jobs", MAX_JOBS_ENV, max_jobs, usable_cores(), 1, MAX_LIMIT)
         session = _setting("per_session", PER_SESSION_ENV, per_session, DEFAULT_PER_SESSION, 1, MAX_LIMIT)
         idle = DEFAULT_IDLE_TIMEOUT_S if idle_timeout_s is None else idle_timeout_s
@@ -157,112 +166,23 @@ class Limits:
             raise InputError(f"idle_timeout_s = {idle!r}: accepted is a number of seconds from 0.1 to 86400") from None
         if not 0.1 <= idle <= 86400:
             raise InputError(f"idle_timeout_s = {idle!r}: accepted is a number of seconds from 0.1 to 86400")
-        return cls(jobs, session, idle)
-
-
-# --------------------------------------------------------------------------- processes
-def _process(pid, ctime):
-    """The live process ``pid`` created at ``ctime`` (psutil), or None (ended, zombie, or
-    the pid now belongs to another process)."""
-    import psutil
-
-    if not pid:
-        return None
-    try:
-        proc = psutil.Process(int(pid))
-        if ctime is not None and abs(proc.create_time() - float(ctime)) > 0.05:
-            return None
-        if proc.status() == psutil.STATUS_ZOMBIE:
-            return None
-        return proc
-    except (psutil.NoSuchProcess, psutil.AccessDenied, ProcessLookupError):
-        return None
-
-
-def process_alive(pid, ctime) -> bool:
-    """Whether the process ``pid`` created at ``ctime`` [s since the epoch] still runs."""
-    return _process(pid, ctime) is not None
-
-
-def process_ctime(pid) -> float | None:
-    """Creation time [s since the epoch] of process ``pid``, None when it has ended."""
-    import psutil
-
-    try:
-        return psutil.Process(int(pid)).create_time()
-    except (psutil.NoSuchProcess, psutil.AccessDenied):
-        return None
-
-
-def terminate_tree(pid, ctime, grace_s: float = TERM_GRACE_S) -> None:
-    """Terminate job process ``pid`` (created at ``ctime``), its process group and its
-    descendants: SIGTERM, then SIGKILL after ``grace_s`` seconds for what is left.
-
-    Nothing is signalled when ``pid`` now belongs to another process (different creation
-    time). The process group ``pid`` is signalled only when the job process still runs or
-    no process holds that pid any more (a pid stays reserved while its group has members,
-    so the group is then the job's remains)."""
-    import psutil
-
-    if not pid:
-        return
-    pid = int(pid)
-    proc = _process(pid, ctime)
-    try:
-        holder = psutil.Process(pid)
-    except psutil.NoSuchProcess:
-        holder = None
-    group_is_ours = proc is not None or holder is None or (
-        ctime is not None and abs(holder.create_time() - float(ctime)) <= 0.05)  # a zombie job process
-    targets = []
-    if proc is not None:
-        try:
-            targets = [proc, *proc.children(recursive=True)]
-        except psutil.NoSuchProcess:
-            targets = [proc]
-    if group_is_ours:
-        for p in psutil.process_iter():
-            try:
-                if os.getpgid(p.pid) == pid and p not in targets:
-                    targets.append(p)
-            except (ProcessLookupError, PermissionError, psutil.NoSuchProcess):
-                continue
-    for sig in (signal.SIGTERM, signal.SIGKILL):
-        if group_is_ours:
-            try:
-                os.killpg(pid, sig)
-            except (ProcessLookupError, PermissionError):
-                pass
-        for p in targets:
-            try:
-                p.send_signal(sig)
-            except (psutil.NoSuchProcess, psutil.AccessDenied):
-                pass
-        deadline = time.monotonic() + grace_s
-        while time.monotonic() < deadline:
-            if not any(_still_running(p) for p in targets):
-                return
-            time.sleep(0.02)
-
-
-def _still_running(proc) -> bool:
-    import psutil
-
-    try:
-        return proc.is_running() and proc.status() != psutil.STATUS_ZOMBIE
-    except psutil.NoSuchProcess:
-        return False
+        queued = DEFAULT_QUEUED_PER_SESSION if queued_per_session is None else _whole(
+            "queued_per_session", queued_per_session, 1, MAX_LIMIT)
+        total = DEFAULT_MAX_QUEUED if max_queued is None else _whole("max_queued", max_queued, 1, MAX_QUEUED_LIMIT)
+        return cls(jobs, session, idle, queued, total)
 
 
 # --------------------------------------------------------------------------- registry
 @dataclass(frozen=True)
 class Submitted:
-    """Outcome of :meth:`JobRegistry.submit`: the job, the caller's waiter handle and
-    whether an existing job was shared."""
+    """Outcome of :meth:`JobRegistry.submit`: the job, the caller's waiter handle,
+    whether an existing job was shared, and why it was refused (the queue was full: the
+    job is recorded as failed, no process starts), else None."""
 
     job_id: str
     waiter_id: str
     shared: bool
+    refused: str | None = None
 
 
 @dataclass(frozen=True)
@@ -293,8 +213,8 @@ class JobRegistry:
     ``private_dir("jobs")``); see the module docstring."""
 
     def __init__(self, folder: str | os.PathLike | None = None, *, max_jobs=None, per_session=None,
-                 idle_timeout_s=None):
-        self.limits = Limits.resolve(max_jobs, per_session, idle_timeout_s)
+                 idle_timeout_s=None, queued_per_session=None, max_queued=None):
+        self.limits = Limits.resolve(max_jobs, per_session, idle_timeout_s, queued_per_session, max_queued)
         if folder is None:
             from dampersim.locations import private_dir
 
@@ -336,9 +256,14 @@ class JobRegistry:
         """Queue a job for ``session`` (or share the queued/running job of ``store`` with
         the same ``work_key``: then ``payload`` is not stored and no process will start).
         ``payload`` is whatever the starter of :meth:`dispatch` needs; ``cache_key`` lets
-        :meth:`waiter_for_cache_key` find the waiter again."""
+        :meth:`waiter_for_cache_key` find the waiter again.
+
+        A new job is refused when ``session`` already has ``queued_per_session`` queued
+        jobs or the registry ``max_queued``: it is recorded as failed at once (no process
+        will start) and :attr:`Submitted.refused` says why; sharing is never refused."""
         now = time.time()
         waiter = "w" + secrets.token_hex(12)
+        refused = None
         with self._tx() as con:
             row = None
             if work_key:
@@ -348,19 +273,35 @@ class JobRegistry:
                 job, shared = row["id"], True
             else:
                 job, shared = "j" + secrets.token_hex(12), False
-                con.execute("INSERT INTO jobs (id, work_key, session, store, state, created, last_polled, payload) "
-                            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                            (job, work_key or None, session, store, QUEUED, now, now, payload))
+                refused = self._queue_full(con, session)
+                state = QUEUED if refused is None else FAILED
+                con.execute("INSERT INTO jobs (id, work_key, session, store, state, created, finished, last_polled, "
+                            "payload) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                            (job, None if refused else (work_key or None), session, store, state, now,
+                             now if refused else None, now, None if refused else payload))
             con.execute("INSERT INTO waiters (id, job_id, cache_key, session, created, last_polled) "
                         "VALUES (?, ?, ?, ?, ?, ?)", (waiter, job, cache_key, session, now, now))
-        return Submitted(job, waiter, shared)
+        return Submitted(job, waiter, shared, refused)
+
+    def _queue_full(self, con, session: str) -> str | None:
+        """Why a new job of ``session`` may not be queued now, None when it may."""
+        mine = con.execute("SELECT COUNT(*) FROM jobs WHERE state = ? AND session = ?", (QUEUED, session)).fetchone()[0]
+        if mine >= self.limits.queued_per_session:
+            return (f"the server's queue is full: this session already has {mine} jobs waiting (at most "
+                    f"{self.limits.queued_per_session}); try again later, when one of them has finished")
+        total = con.execute("SELECT COUNT(*) FROM jobs WHERE state = ?", (QUEUED,)).fetchone()[0]
+        if total >= self.limits.max_queued:
+            return (f"the server's queue is full ({total} jobs waiting, at most {self.limits.max_queued}); "
+                    f"try again later")
+        return None
 
     def dispatch(self, start, *, store: str | None = None) -> list:
         """Start queued jobs (of ``store``, or any) while slots are free: oldest first, at
         most ``max_jobs`` running in total and ``per_session`` per session.
 
         ``start(job_id, payload) -> pid`` starts the process; its pid and creation time are
-        recorded. A job whose start raises is marked failed. Returns the started job ids."""
+        recorded (see :meth:`record_start`). A job whose start raises is marked failed (and
+        logged) and the other claimed jobs still start. Returns the started job ids."""
         now = time.time()
         claimed = []
         with self._tx() as con:
@@ -387,18 +328,28 @@ class JobRegistry:
         for job, payload in claimed:
             try:
                 pid = start(job, payload)
-            except Exception:
-                self.finish(job, ok=False)
-                raise
-            self.record_start(job, pid, process_ctime(pid))
-            started.append(job)
+            except Exception as exc:  # noqa: BLE001 - one bad start must not strand the other claims
+                LOGGER.warning("job %s did not start: %s", job, exc)
+                try:
+                    self.finish(job, ok=False)
+                except sqlite3.Error as db_exc:  # reap marks it failed after START_GRACE_S
+                    LOGGER.warning("job %s: %s", job, db_exc)
+                continue
+            if self.record_start(job, pid, process_ctime(pid)):
+                started.append(job)
         return started
 
-    def record_start(self, job_id: str, pid: int, ctime: float | None) -> None:
+    def record_start(self, job_id: str, pid: int, ctime: float | None) -> bool:
         """Record the process of a claimed job (``ctime``: its creation time, None when it
-        already ended)."""
+        already ended). When the job is no longer running (cancelled or reaped between its
+        claim and now), the new process is terminated at once with its process group and
+        False is returned: no process runs uncounted."""
         with self._tx() as con:
-            con.execute("UPDATE jobs SET pid = ?, pid_ctime = ? WHERE id = ?", (int(pid), ctime, job_id))
+            changed = con.execute("UPDATE jobs SET pid = ?, pid_ctime = ? WHERE id = ? AND state = ?",
+                                  (int(pid), ctime, job_id, RUNNING)).rowcount
+        if not changed:
+            terminate_tree(pid, ctime)
+        return bool(changed)
 
     def finish(self, job_id: str, ok: bool = True) -> None:
         """Mark a running job done (or failed); called by the job process at its end."""
@@ -492,7 +443,9 @@ class JobRegistry:
     def reap(self) -> ReapReport:
         """Cancel jobs no waiter polled for ``idle_timeout_s`` (queued ones are dropped,
         running ones terminated with their process group), mark as failed running jobs whose
-        process ended without :meth:`finish`, and forget jobs finished over an hour ago."""
+        process ended without :meth:`finish` and claimed jobs without a recorded process
+        after ``START_GRACE_S`` (or whose claiming server process has ended), and forget
+        jobs finished over an hour ago."""
         now = time.time()
         idle, dropped, failed, victims = [], [], [], []
         with self._tx() as con:
@@ -512,7 +465,7 @@ class JobRegistry:
                 elif j["state"] == RUNNING:
                     if j["pid"] is None:
                         lost = (now - (j["started"] or now) > START_GRACE_S
-                                and not process_alive(j["owner"], None))
+                                or not process_alive(j["owner"], None))
                     else:
                         lost = not process_alive(j["pid"], j["pid_ctime"])
                     if lost:
@@ -587,5 +540,6 @@ def sweep_workers(cores: int | None = None) -> int:
         return usable_cores() if cores is None else max(1, int(cores))
 
 
-__all__ = ["MAX_JOBS_ENV", "PER_SESSION_ENV", "STATES", "Limits", "JobRegistry", "Submitted", "WaiterInfo",
-           "ReapReport", "usable_cores", "process_alive", "process_ctime", "terminate_tree", "sweep_workers"]
+__all__ = ["MAX_JOBS_ENV", "PER_SESSION_ENV", "STATES", "TERM_GRACE_S", "Limits", "JobRegistry", "Submitted",
+           "WaiterInfo", "ReapReport", "usable_cores", "process_alive", "process_ctime", "terminate_tree",
+           "sweep_workers"]

@@ -189,3 +189,83 @@ def test_sweep_workers_share_the_cores_among_running_jobs(registry_dir):
         reg.submit("A")
     reg.dispatch(_fake_start)
     assert reg.sweep_workers(8) == 2 and reg.sweep_workers(2) == 1
+
+
+# ----------------------------------------------------------------------- races and failed starts
+def test_cancel_between_claim_and_start_terminates_the_new_process(registry_dir):
+    # dispatch claims the job (RUNNING, no pid yet), then starts its process; a cancel in
+    # between finds no process to end: the start record must end it, or it runs uncounted
+    reg = JobRegistry(registry_dir, max_jobs=2)
+    sub = reg.submit("A")
+    procs = []
+
+    def start_with_a_cancel(job, payload):
+        assert reg.cancel(sub.waiter_id) is True  # the tab is closed while the process starts
+        procs.append(_sleeper())
+        return procs[0].pid
+
+    try:
+        assert reg.dispatch(start_with_a_cancel) == []  # nothing counts as started
+        assert reg.job_state(sub.job_id) == CANCELLED and reg.running_count() == 0
+        assert procs[0].wait(timeout=5) != 0  # budget: SIGTERM now (the 30 s sleep never ends by itself)
+        assert reg.job(sub.job_id)["pid"] is None
+    finally:
+        for p in procs:
+            p.kill()
+
+
+def test_a_failed_start_leaves_the_other_claimed_jobs_running(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=3, per_session=3)
+    broken, fine = reg.submit("A"), reg.submit("A")
+    proc = _sleeper()
+
+    def start(job, payload):
+        if job == broken.job_id:
+            raise OSError("no more processes")
+        return proc.pid
+
+    try:
+        assert reg.dispatch(start) == [fine.job_id]  # no exception: the second claim still started
+        assert reg.job_state(broken.job_id) == FAILED
+        assert reg.job_state(fine.job_id) == RUNNING and reg.job(fine.job_id)["pid"] == proc.pid
+        assert reg.running_count() == 1
+    finally:
+        proc.kill()
+
+
+def test_a_claim_without_a_process_is_failed_after_the_start_grace(registry_dir):
+    from dampersim import jobs
+
+    reg = JobRegistry(registry_dir, max_jobs=4, per_session=4)
+    stale, fresh, orphan = reg.submit("A"), reg.submit("A"), reg.submit("A")
+    with reg._tx() as con:  # claimed by a live server process (this one) that never recorded a process
+        con.execute("UPDATE jobs SET state = 'running', owner = ?, started = ? WHERE id = ?",
+                    (os.getpid(), time.time() - jobs.START_GRACE_S - 1, stale.job_id))
+        con.execute("UPDATE jobs SET state = 'running', owner = ?, started = ? WHERE id = ?",
+                    (os.getpid(), time.time(), fresh.job_id))
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    with reg._tx() as con:  # claimed a moment ago by a server process that has ended since
+        con.execute("UPDATE jobs SET state = 'running', owner = ?, started = ? WHERE id = ?",
+                    (dead.pid, time.time(), orphan.job_id))
+    report = reg.reap()
+    assert set(report.failed) == {stale.job_id, orphan.job_id}
+    assert reg.job_state(fresh.job_id) == RUNNING  # still within the grace of a live server
+    assert reg.running_count() == 1
+
+
+# ----------------------------------------------------------------------- queue caps
+def test_queue_is_capped_per_session_and_in_total(registry_dir):
+    reg = JobRegistry(registry_dir, max_jobs=1, per_session=1, queued_per_session=2, max_queued=3)
+    a = [reg.submit("A", f"a{i}") for i in range(3)]
+    assert [s.refused for s in a[:2]] == [None, None]
+    assert "this session already has 2 jobs waiting (at most 2)" in a[2].refused and "try again later" in a[2].refused
+    assert reg.job_state(a[2].job_id) == FAILED and reg.job(a[2].job_id)["pid"] is None
+    assert reg.submit("B", "a0").shared  # attaching to a queued job adds no job: never refused
+    b = [reg.submit("B") for _ in range(2)]
+    assert b[0].refused is None
+    assert "the server's queue is full (3 jobs waiting, at most 3)" in b[1].refused
+    assert reg.queued_count() == 3
+    assert not reg.submit("C", "a2").shared  # a refused job is never shared (it has no work key)
+    with pytest.raises(InputError, match="queued_per_session"):
+        JobRegistry(registry_dir, queued_per_session=0)
