@@ -211,13 +211,16 @@ def _env_int(name):
 def job_manager():
     """The background-callback manager: the job queue of ``pages._background`` (global and
     per-session limits, identical requests shared, idle jobs reaped, shutdown). Its pickled
-    job data lives only in ``private_dir("callbacks")`` (0700, owner checked)."""
+    job data lives only in ``private_dir("callbacks")`` (0700, owner checked). Jobs are
+    shared on the work key stored with their ticket (``_jobs.ticket_work``), never on
+    one the browser posts; a call refused because the queue is full gets the page's error."""
     from dampersim.locations import private_dir
-    from pages import _background
+    from pages import _background, _jobs
 
     _JOBS["module"] = _background
     return _background.make_manager(private_dir("callbacks"), max_jobs=_env_int(ENV_OF_FLAG["max_jobs"]),
-                                    per_session=_env_int(ENV_OF_FLAG["jobs_per_session"]))
+                                    per_session=_env_int(ENV_OF_FLAG["jobs_per_session"]),
+                                    work_of=_jobs.ticket_work, refused_result=_jobs.refused_result)
 
 
 def shutdown_jobs() -> None:
@@ -293,14 +296,26 @@ def remove_stale_temporaries(root, max_age_s: float = STALE_TEMP_AGE_S, now: flo
 
 
 def cleanup_at_start(root) -> None:
-    """Start-up housekeeping: stale temporaries, then stale uploads (when the discrepancy
-    package offers ``cleanup_stale_uploads``)."""
+    """Start-up housekeeping: stale temporaries, the job registry's reap (jobs of a server
+    that died are failed or cancelled, so they no longer count against the limits), then
+    stale uploads (when the discrepancy package offers ``cleanup_stale_uploads``)."""
     import logging
 
     log = logging.getLogger("dampersim.app")
     removed = remove_stale_temporaries(root)
     if removed:
         log.warning("removed %d stale temporary file(s)/folder(s) from the cache", len(removed))
+    try:
+        from dampersim.jobs import JobRegistry
+
+        report = JobRegistry().reap()
+        if report.idle or report.dropped or report.failed:
+            log.warning("job registry at start: %d job(s) of an earlier server ended",
+                        len(report.idle) + len(report.dropped) + len(report.failed))
+    except Exception as exc:  # the server still starts; the next poll reaps again
+        from dampersim import incidents
+
+        incidents.report(exc, "job registry reap at start")
     try:
         from dampersim.discrepancy import upload
     except ImportError:
@@ -458,6 +473,7 @@ def main(argv=None) -> int:
         raise SystemExit(128 + signum)
 
     signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGHUP, _stop)  # a closed terminal stops the jobs too, as SIGTERM does
     try:
         if args.debug:
             app.run(host=args.host, port=args.port, debug=True, use_reloader=False)
@@ -474,7 +490,7 @@ def main(argv=None) -> int:
         )
         srv.print_listen("dampersim serving on http://{}:{}")
         try:
-            srv.run()  # returns on SIGINT/SIGTERM (waitress stops its threads)
+            srv.run()  # returns on SIGINT/SIGTERM/SIGHUP (waitress stops its threads)
         finally:
             srv.close()
     except KeyboardInterrupt:

@@ -9,10 +9,13 @@ through the registry instead, before any process exists:
   per-session limits), on that call or on a later poll, from whichever server process
   receives the poll (the registry and the job's arguments are on disk, so several WSGI
   workers share one queue);
-* a call whose first callback argument is a dict with the same ``"work"`` string as a
-  queued or running job of the same callback shares that job: no second process, and its
-  result reaches every waiter (it is stored under the job's own key; each Dash cache key
-  finds it through the registry);
+* a call whose work key, computed on the server by ``work_of(args)`` (the dashboard
+  reads it from the ticket's stored request; never from what the browser posts), equals
+  that of a queued or running job of the same callback shares that job: no second
+  process, and its result reaches every waiter (it is stored under the job's own key;
+  each Dash cache key finds it through the registry); without ``work_of`` nothing is shared;
+* a call above the queue caps (per session, in total) is answered at once with
+  ``refused_result(message, args)`` (default: an error result), and no process starts;
 * a job process runs in its own session and process group, recorded by pid and creation
   time, so terminating it also ends its pool workers and never hits a reused pid;
 * a job nobody polls for ``idle_timeout_s`` seconds is terminated (or dropped from the
@@ -21,10 +24,10 @@ through the registry instead, before any process exists:
 * a failing job stores :func:`dampersim.incidents.public_message` of its exception, never
   a traceback; a job whose process died without a result is reported as failed.
 
-Sessions are a random HttpOnly, SameSite=Strict cookie set by :func:`install_sessions`;
-requests without it share one anonymous session. :func:`shutdown_jobs` terminates the jobs
-this server process started (registered with :mod:`atexit`; also call it from the
-server's signal handlers).
+Sessions are signed cookies (:mod:`pages._sessions`): requests without a cookie, or with
+an unsigned or forged one, share one anonymous session. :func:`shutdown_jobs` terminates
+the jobs this server process started (registered with :mod:`atexit`; also call it from
+the server's signal handlers).
 """
 
 from __future__ import annotations
@@ -38,8 +41,6 @@ import logging
 import multiprocessing
 import os
 import pickle
-import re
-import secrets
 import signal
 import sqlite3
 import threading
@@ -52,14 +53,11 @@ from dash import DiskcacheManager
 
 from dampersim.incidents import public_message, redact_paths
 from dampersim.jobs import ACTIVE, DONE, FAILED, QUEUED, JobRegistry
+from pages._sessions import (ANONYMOUS, SESSION_COOKIE, current_session, install_sessions, sign_session,
+                             verified_session)
 
 LOGGER = logging.getLogger("dampersim.dashboard.jobs")
 
-#: Name of the session cookie.
-SESSION_COOKIE = "dampersim_session"
-#: Session of requests without a (valid) session cookie, and of calls outside a request.
-ANONYMOUS = "anonymous"
-_SESSION_RE = re.compile(r"^[0-9a-f]{32}$")
 #: Prefix of a job's keys in the result cache (result, progress, set_props).
 _KEY_PREFIX = "dampersim-job-"
 #: Seconds between two reaps by one server process (polls arrive every 0.3-1 s).
@@ -80,36 +78,16 @@ _MANAGERS: list = []
 _ATEXIT = []
 
 
-# --------------------------------------------------------------------------- sessions
-def install_sessions(flask_server) -> None:
-    """Give every browser a random session id in the ``dampersim_session`` cookie
-    (HttpOnly, SameSite=Strict), set on the first response that finds it missing."""
-    from flask import g, request
-
-    @flask_server.before_request
-    def _dampersim_session():
-        if not _SESSION_RE.match(request.cookies.get(SESSION_COOKIE, "")):
-            g.dampersim_new_session = secrets.token_hex(16)
-
-    @flask_server.after_request
-    def _dampersim_session_cookie(response):
-        sid = g.get("dampersim_new_session")
-        if sid:
-            response.set_cookie(SESSION_COOKIE, sid, httponly=True, samesite="Strict", path="/")
-        return response
+def first_argument(args):
+    """The first callback argument of a background call (Dash passes a list, or a dict)."""
+    if isinstance(args, (list, tuple)):
+        return args[0] if args else None
+    return next(iter(args.values()), None) if isinstance(args, dict) else args
 
 
-def current_session() -> str:
-    """Session id of the current request's cookie; :data:`ANONYMOUS` without a valid one
-    or outside a request."""
-    try:
-        from flask import has_request_context, request
-    except ImportError:  # pragma: no cover - flask comes with dash
-        return ANONYMOUS
-    if not has_request_context():
-        return ANONYMOUS
-    sid = request.cookies.get(SESSION_COOKIE, "")
-    return sid if _SESSION_RE.match(sid) else ANONYMOUS
+def refused_error(message: str, _args=None) -> dict:
+    """Default result of a refused submission: a background-callback error."""
+    return {"background_callback_error": {"msg": message, "tb": ""}}
 
 
 # --------------------------------------------------------------------------- the job function
@@ -298,13 +276,15 @@ class JobQueueManager(DiskcacheManager):
     :func:`make_manager`."""
 
     def __init__(self, cache, registry: JobRegistry, *, queued_progress=None, start_method="forkserver",
-                 app_module="app"):
+                 app_module="app", work_of=None, refused_result=None):
         if start_method not in ("forkserver", "fork"):
             raise ValueError(f"start_method = {start_method!r}: accepted is 'forkserver' or 'fork'")
         self.registry = registry
         self.start_method = start_method
         self.app_module = app_module
         self.queued_progress = queued_progress or default_queued_progress
+        self.work_of = work_of
+        self.refused_result = refused_result or refused_error
         self._store = str(cache.directory)
         self._procs: dict = {}
         self._lock = threading.Lock()
@@ -325,14 +305,23 @@ class JobQueueManager(DiskcacheManager):
 
     # ----- submit
     def call_job_fn(self, key, job_fn, args, context):
-        """Queue (or share) the job; returns the waiter id Dash hands to the browser."""
+        """Queue (or share) the job; returns the waiter id Dash hands to the browser. The
+        work key comes from ``work_of(args)`` on the server (nothing posted is trusted);
+        a refused submission gets its result at once."""
         fn_key = self._fn_key(job_fn)
-        first = args[0] if isinstance(args, (list, tuple)) and args else (
-            next(iter(args.values()), None) if isinstance(args, dict) else args)
-        work = first.get("work") if isinstance(first, dict) else None
+        work = None
+        if self.work_of is not None:
+            try:
+                work = self.work_of(args)
+            except Exception as exc:  # noqa: BLE001 - no key: the job is simply not shared
+                LOGGER.warning("work key: %s", exc)
         work_key = hashlib.sha256(f"{fn_key}\0{work}".encode()).hexdigest() if isinstance(work, str) and work else None
         payload = pickle.dumps((fn_key, args, _slim_context(context)), protocol=pickle.HIGHEST_PROTOCOL)
-        sub = self.registry.submit(current_session(), work_key, store=self._store, payload=payload, cache_key=key)
+        sub = self.registry.submit(current_session(self.registry.folder), work_key, store=self._store,
+                                   payload=payload, cache_key=key)
+        if sub.refused:
+            self.handle.set(_KEY_PREFIX + sub.job_id, self.refused_result(sub.refused, args), expire=RESULT_EXPIRE_S)
+            return sub.waiter_id
         self._tick(dispatch=True)
         return sub.waiter_id
 
@@ -525,7 +514,8 @@ def _progress_outputs() -> int:
 
 
 def make_manager(cache_root, *, max_jobs=None, per_session=None, idle_timeout_s=None, registry_dir=None,
-                 queued_progress=None, start_method="forkserver", app_module="app") -> JobQueueManager:
+                 queued_progress=None, start_method="forkserver", app_module="app", work_of=None,
+                 refused_result=None, queued_per_session=None, max_queued=None) -> JobQueueManager:
     """Background-callback manager whose jobs go through the job registry.
 
     cache_root: folder of the result cache (created 0700 when missing; it holds pickles,
@@ -539,11 +529,17 @@ def make_manager(cache_root, *, max_jobs=None, per_session=None, idle_timeout_s=
         holds no SQLite connection in another thread, e.g. a test's own app).
     app_module: module whose import defines the background callbacks (the dashboard's
         ``app``), imported by a job process that cannot receive its function pickled.
+    work_of: ``args -> work key or None``, computed on the server (never from posted
+        data); calls of one callback with the same key share one job. None: no sharing.
+    refused_result: ``(message, args) -> result`` of a call refused because the queue is
+        full (default :func:`refused_error`); queued_per_session, max_queued: the caps.
     """
     os.makedirs(cache_root, mode=0o700, exist_ok=True)
-    registry = JobRegistry(registry_dir, max_jobs=max_jobs, per_session=per_session, idle_timeout_s=idle_timeout_s)
+    registry = JobRegistry(registry_dir, max_jobs=max_jobs, per_session=per_session, idle_timeout_s=idle_timeout_s,
+                           queued_per_session=queued_per_session, max_queued=max_queued)
     manager = JobQueueManager(diskcache.Cache(str(cache_root)), registry, queued_progress=queued_progress,
-                              start_method=start_method, app_module=app_module)
+                              start_method=start_method, app_module=app_module, work_of=work_of,
+                              refused_result=refused_result)
     _MANAGERS.append(manager)
     if not _ATEXIT:
         # after multiprocessing's own exit handler, so it runs first (atexit is last in,
@@ -568,4 +564,5 @@ def shutdown_jobs() -> list:
 
 
 __all__ = ["SESSION_COOKIE", "ANONYMOUS", "JobQueueManager", "make_manager", "install_sessions", "current_session",
-           "shutdown_jobs", "default_queued_progress"]
+           "sign_session", "verified_session", "first_argument", "refused_error", "shutdown_jobs",
+           "default_queued_progress"]

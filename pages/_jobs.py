@@ -3,10 +3,11 @@ page whose results come from long work, with progress, status lines and time est
 
 The browser never carries a job's state: the request callback validates it, keeps it on
 the server under an opaque ticket (:mod:`dampersim.views.tickets`) and sends only
-``{"ticket", "work", "nonce"}`` (``work``: the key of the view the job produces, so
-identical requests can be computed once). The job callback loads the state by ticket
-and hands it to the page's ``job``, which validates it again and checks the budget
-before any work. Every error text shown comes from :func:`dampersim.incidents.public_message`.
+``{"ticket", "work", "nonce"}`` (``work``: the key of the view the job produces). The
+job queue shares identical requests on the work key stored with the ticket
+(:func:`ticket_work`), never on the posted one. The job callback loads the state by
+ticket and hands it to the page's ``job``, which validates it again and checks the budget
+before any work; a result whose key is not the ticket's work is refused. Every error text shown comes from :func:`dampersim.incidents.public_message`.
 """
 
 from __future__ import annotations
@@ -187,13 +188,43 @@ def register_background(page: str, *, control_inputs, request, job, show, show_o
 
 #: What the page says when a job's ticket is unknown or expired.
 EXPIRED_TEXT = "this request has expired; press Run"
+#: What the page says when a job produced another view than its ticket's work.
+MISMATCH_TEXT = "the result does not match this request (its inputs changed meanwhile); press Run"
+
+
+def ticket_work(args) -> str | None:
+    """Work key of a background call, read on the server from the ticket it posts (for
+    the job queue's ``work_of``): the ticket's page and stored work, or None (no ticket,
+    unknown, expired, or no work stored: the job is not shared). A posted ``work`` is
+    ignored."""
+    from pages._background import first_argument
+
+    first = first_argument(args)
+    entry = tickets.peek(first.get("ticket") if isinstance(first, dict) else None)
+    if entry is None or not entry["work"]:
+        return None
+    return f"{entry['page']}\0{entry['work']}"
+
+
+def refused_result(message: str, args):
+    """Result of a call the job queue refused (queue full), as the page shows it: a
+    ticket job's ``{"error", "nonce"}``, else a background-callback error (shown by the
+    callback's ``on_error``)."""
+    from pages._background import first_argument, refused_error
+
+    first = first_argument(args)
+    if isinstance(first, dict) and "ticket" in first:
+        nonce = first.get("nonce")
+        return {"error": message, "nonce": nonce if isinstance(nonce, str) and len(nonce) <= 64 else None}
+    return refused_error(message)
 
 
 def run_ticket(page: str, job, job_data, progress) -> dict:
     """The body of a job callback: load the request of ``job_data["ticket"]`` (nothing
     else of the posted data is used) and run ``job({"state": ...}, progress)``, which
     validates the state again and checks the budget. Returns {"key"} or {"error"} with
-    the posted nonce (a text, kept only when it is one)."""
+    the posted nonce (a text, kept only when it is one); a key other than the ticket's
+    stored work is refused (waiters sharing this job asked for that work)."""
     nonce = job_data.get("nonce") if isinstance(job_data, dict) else None
     nonce = nonce if isinstance(nonce, str) and len(nonce) <= 64 else None
     entry = tickets.redeem(job_data.get("ticket") if isinstance(job_data, dict) else None, page)
@@ -203,6 +234,8 @@ def run_ticket(page: str, job, job_data, progress) -> dict:
         out = job({"state": entry["state"]}, progress)
     except Exception as exc:
         out = {"error": public_message(exc, page + " job")}
+    if entry["work"] and isinstance(out, dict) and "key" in out and out["key"] != entry["work"]:
+        out = {"error": MISMATCH_TEXT}
     return {**out, "nonce": nonce}
 
 

@@ -5,7 +5,8 @@ A page's request callback validates its state and :func:`issue` stores it (page,
 the view key the job will produce) as a small JSON file in the private folder
 ``tickets`` of the cache (:func:`dampersim.locations.private_dir`: mode 0700, owner
 checked); the browser only receives the id. The job callback :func:`redeem` s the id and
-validates the state again before any work. Tickets expire after :data:`TICKET_TTL_S`;
+validates the state again before any work; the job queue reads the stored work key with
+:func:`peek` to share identical requests. Tickets expire after :data:`TICKET_TTL_S`;
 an unknown, malformed or expired id gives None (the page says "this request has
 expired; press Run").
 """
@@ -69,9 +70,11 @@ def issue(page: str, state: dict, work: str | None = None) -> str:
     return ticket
 
 
-def redeem(ticket, page: str) -> dict | None:
-    """The stored request ``{"state", "work"}`` of ``ticket`` for ``page``, or None when the
-    id is malformed, unknown, expired, unreadable or issued for another page."""
+def peek(ticket, page: str | None = None) -> dict | None:
+    """The stored request ``{"page", "state", "work"}`` of ``ticket`` (of ``page`` when
+    given), or None when the id is malformed, unknown, expired, unreadable or issued for
+    another page. The server reads the work key of a posted ticket this way (the job
+    queue shares jobs on it, never on a work key the browser posts)."""
     if not valid_ticket(ticket):
         return None
     path = _folder() / f"{ticket}.json"
@@ -85,12 +88,22 @@ def redeem(ticket, page: str) -> dict | None:
             data = json.loads(fh.read().decode("utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(data, dict) or data.get("page") != page:
+    if not isinstance(data, dict) or not isinstance(data.get("page"), str):
+        return None
+    if page is not None and data["page"] != page:
         return None
     created = data.get("created")
     if not isinstance(created, (int, float)) or time.time() - created > TICKET_TTL_S:
         return None
-    return {"state": data.get("state"), "work": data.get("work")}
+    work = data.get("work")
+    return {"page": data["page"], "state": data.get("state"), "work": work if isinstance(work, str) else None}
+
+
+def redeem(ticket, page: str) -> dict | None:
+    """The stored request ``{"state", "work"}`` of ``ticket`` for ``page``, or None when the
+    id is malformed, unknown, expired, unreadable or issued for another page."""
+    entry = peek(ticket, page)
+    return None if entry is None else {"state": entry["state"], "work": entry["work"]}
 
 
 def _unlink(path):
@@ -126,4 +139,5 @@ def _prune(folder) -> None:
             _unlink(path)
 
 
-__all__ = ["TICKETS_SUBDIR", "TICKET_TTL_S", "MAX_TICKET_BYTES", "MAX_TICKETS", "valid_ticket", "issue", "redeem"]
+__all__ = ["TICKETS_SUBDIR", "TICKET_TTL_S", "MAX_TICKET_BYTES", "MAX_TICKETS", "valid_ticket", "issue", "peek",
+           "redeem"]
