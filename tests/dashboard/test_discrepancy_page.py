@@ -481,18 +481,25 @@ def test_identical_diagnosis_requests_have_one_work_key(tiny, monkeypatch):
 
 def test_identical_diagnosis_requests_share_one_job(tmp_path):
     """Two tabs asking for the same diagnosis: the job queue runs one job for both (the
-    manager keys on the job data's "work"); another campaign gets its own job."""
-    from pages import _background
+    manager keys on the work the server stored with each request's ticket, never on a
+    posted value); another request gets its own job."""
+    from pages import _background, _jobs
+    from dampersim.views import tickets
     from tests.hardening.test_background_manager import Caller, poll_all
 
-    work = D.request(True, False, [EXAMPLE], None, False)["job"]["work"]
+    requests = [D.request(True, False, [EXAMPLE], None, False)["job"] for _ in range(2)]
+    assert requests[0]["work"] == requests[1]["work"]
+    # as the request callback does: the validated state and its work stay on the server
+    jobs_data = [{"ticket": tickets.issue("discrepancy", r["state"], r["work"]), "work": r["work"]} for r in requests]
+    other_ticket = tickets.issue("discrepancy", {"campaign": EXAMPLE}, work="f" * 64)
     manager = _background.make_manager(tmp_path / "callbacks", registry_dir=tmp_path / "jobs", max_jobs=2,
-                                       per_session=4, idle_timeout_s=30.0)
+                                       per_session=4, idle_timeout_s=30.0, work_of=_jobs.ticket_work)
     try:
-        tabs = [Caller(manager, "sleep_and_return", {"work": work, "nonce": n, "sleep": 0.3}, session="a" * 32)
-                for n in ("tab-1", "tab-2")]
-        other = Caller(manager, "sleep_and_return", {"work": "f" * 64, "nonce": "tab-3", "sleep": 0.3},
-                       session="a" * 32)
+        tabs = [Caller(manager, "sleep_and_return", {"ticket": j["ticket"], "nonce": n, "sleep": 0.3}, session="a" * 32)
+                for j, n in zip(jobs_data, ("tab-1", "tab-2"))]
+        # a posted work is ignored: this request claims the tabs' work but holds another ticket
+        other = Caller(manager, "sleep_and_return", {"ticket": other_ticket, "work": jobs_data[0]["work"],
+                                                     "nonce": "tab-3", "sleep": 0.3}, session="a" * 32)
         jobs = [manager.registry.waiter(c.job).job_id for c in (*tabs, other)]
         assert jobs[0] == jobs[1] != jobs[2]
         poll_all([*tabs, other], budget_s=60.0)  # budget: fork server start (~2 s) and two 0.3 s jobs
