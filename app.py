@@ -455,6 +455,9 @@ def main(argv=None) -> int:
         value = getattr(args, flag)
         if value is not None:
             os.environ[env] = f"{value:g}" if isinstance(value, float) else str(value)
+    # half of the request threads may compute in the foreground (Explorer, Segments); the
+    # other half keeps answering page loads and polls (an explicit setting wins)
+    os.environ.setdefault("DAMPERSIM_FOREGROUND_SLOTS", str(max(1, args.threads // 2)))
 
     global app, server
     app = create_app()

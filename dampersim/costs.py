@@ -55,7 +55,7 @@ FOREGROUND_WORK = 60.0 * STEP_DOF_PER_SECOND
 #: Foreground computations running at once in one server process, by default: half of
 #: ``app.py``'s 8 request threads, so the other half always answers page loads, cache
 #: hits, job polls and static files. Setting: ``DAMPERSIM_FOREGROUND_SLOTS`` (read at
-#: call time; set it to about half of ``--threads`` when changing those).
+#: call time; ``python app.py`` sets it to half of ``--threads`` unless it is set).
 DEFAULT_FOREGROUND_SLOTS = max(1, 8 // 2)
 FOREGROUND_SLOTS_ENV = "DAMPERSIM_FOREGROUND_SLOTS"
 #: Default autostart budget [step·DOF]: about 24 s of one core.

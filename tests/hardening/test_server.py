@@ -194,6 +194,24 @@ def test_flags_become_settings(dash_app, monkeypatch):
         os.environ.pop(env, None)
 
 
+def test_threads_set_the_foreground_slots_unless_given(dash_app, monkeypatch):
+    class Stop(Exception):
+        pass
+
+    def stop():
+        raise Stop
+
+    monkeypatch.setattr(dash_app, "create_app", stop)
+    monkeypatch.delenv("DAMPERSIM_FOREGROUND_SLOTS", raising=False)
+    with pytest.raises(Stop):
+        dash_app.main(["--threads", "12"])
+    assert os.environ["DAMPERSIM_FOREGROUND_SLOTS"] == "6"  # half the request threads
+    monkeypatch.setenv("DAMPERSIM_FOREGROUND_SLOTS", "2")
+    with pytest.raises(Stop):
+        dash_app.main(["--threads", "12"])
+    assert os.environ["DAMPERSIM_FOREGROUND_SLOTS"] == "2"  # an explicit setting wins
+
+
 @pytest.mark.parametrize("flag, value", [("--budget", "-1"), ("--max-jobs", "0"), ("--threads", "many"),
                                          ("--autostart-budget", "nan")])
 def test_bad_flag_values_exit_2(dash_app, capsys, flag, value):
