@@ -253,6 +253,24 @@ def _slim_context(context) -> dict:
     return out
 
 
+#: How Dash starts the message of a background callback's error (dash._callback).
+_DASH_ERROR_PREFIX = "An error occurred inside a background callback: "
+
+
+def job_error_text(exc) -> str:
+    """The text a page shows for the error of a background callback (its ``on_error``):
+    the job queue stores only public messages (a refusal such as a full queue, a job that
+    died, or :func:`dampersim.incidents.public_message` of the job's exception), so that
+    message is shown as it is; any other exception goes through ``public_message``."""
+    from dash.exceptions import BackgroundCallbackError
+
+    if isinstance(exc, BackgroundCallbackError):
+        text = str(exc)
+        text = text[len(_DASH_ERROR_PREFIX):] if text.startswith(_DASH_ERROR_PREFIX) else text
+        return redact_paths(text.strip().splitlines()[0] if text.strip() else "the job failed")
+    return public_message(exc, "background job")
+
+
 def _sanitise(result):
     """A stored error result with its traceback and paths removed (results written by
     other job functions, e.g. Dash's own)."""
@@ -565,4 +583,4 @@ def shutdown_jobs() -> list:
 
 __all__ = ["SESSION_COOKIE", "ANONYMOUS", "JobQueueManager", "make_manager", "install_sessions", "current_session",
            "sign_session", "verified_session", "first_argument", "refused_error", "shutdown_jobs",
-           "default_queued_progress"]
+           "default_queued_progress", "job_error_text"]

@@ -52,6 +52,7 @@ from dampersim.views.notices import notice
 from dampersim.views.rigdata import IMPORT_COMMAND, KINDS, MAX_RECORDING_BYTES, RECORDING_ACCEPTED, confirm_import, stage_recording
 from dampersim.views.sweeps import SweepRegistry
 from pages import _frame as F, _jobs as J, _uploads as U, _widgets as W
+from pages._background import job_error_text
 from pages._diagnosis_view import render
 
 PAGE = "discrepancy"
@@ -322,7 +323,7 @@ def report_for(value):
     try:
         return report(campaign_summary(folder))
     except Exception as exc:  # a campaign the reader did not foresee: say so, keep serving
-        return W.render_notices([notice(f"This campaign cannot be read ({public_message(exc, 'campaign report')}); "
+        return W.render_notices([notice(f"This campaign cannot be read ({job_error_text(exc)}); "
                                         f"accepted is {CAMPAIGN_ACCEPTED}.", "error")])
 
 
@@ -331,20 +332,20 @@ def upload_failed(exc):
     """A campaign upload whose check did not finish (its job died, was stopped or failed
     unexpectedly): the campaign list and the chosen campaign stay; the page says so."""
     return no_update, no_update, W.render_notices([notice(
-        f"The upload was not checked: {public_message(exc, 'campaign upload check')}. Nothing was changed; upload "
+        f"The upload was not checked: {job_error_text(exc)}. Nothing was changed; upload "
         f"the zip again. Accepted is {CAMPAIGN_ACCEPTED}.", "error")])
 
 
 def preview_failed(exc):
     """A recording whose preview did not finish: the review on the right stays."""
     return (*(no_update,) * (IMPORT_PREVIEW_OUTPUTS - 1), W.render_notices([notice(
-        f"The recording was not read: {public_message(exc, 'recording preview')}. Nothing was changed; upload it "
+        f"The recording was not read: {job_error_text(exc)}. Nothing was changed; upload it "
         f"again. Accepted is {RECORDING_ACCEPTED}.", "error")]))
 
 
 def report_failed(exc):
     """A validation report that did not finish."""
-    return W.render_notices([notice(f"The campaign could not be checked ({public_message(exc, 'campaign report')}); "
+    return W.render_notices([notice(f"The campaign could not be checked ({job_error_text(exc)}); "
                                     "choose it again to retry.", "error")])
 
 

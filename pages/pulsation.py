@@ -9,6 +9,7 @@ from dash import Input, Output, State, callback, dcc, html
 from dampersim.errors import DampersimError
 from dampersim.incidents import public_message
 from dampersim.views.pulsation import dominant_order_view, parse_pulsation_query, pulsation_view
+from pages._background import job_error_text
 from pages._widgets import render_notices
 
 dash.register_page(__name__, path="/pulsation", name="Pulsation generator", title="Pulsation generator · dampersim", order=7)
@@ -67,6 +68,7 @@ def run(_n, pressure, speed, coupled):
     Input("pg-sweep", "n_clicks"), State("pg-pressure", "value"), State("pg-coupled", "value"),
     background=True, progress=[Output("pg-progress", "value"), Output("pg-progress", "max")],
     prevent_initial_call=True,
+    on_error=lambda exc: (dash.no_update, f"The sweep did not run: {job_error_text(exc)}."),
 )
 def sweep(set_progress, _n, pressure, coupled):
     """Dominant order over speed; the posted values are validated again here."""

@@ -18,6 +18,7 @@ from dampersim.errors import DampersimError
 from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.studies import STUDY_NAMES, admit_study, estimate_text, parse_studies_query, study_request_cost, study_view
+from pages._background import job_error_text
 from pages._widgets import render_notices
 
 dash.register_page(__name__, path="/studies", name="Studies", title="Studies · dampersim", order=8)
@@ -107,6 +108,7 @@ def request(n_clicks, name, quick):
     running=[(Output("st-run", "disabled"), True, False)],
     cancel=[Input("st-cancel", "n_clicks")],
     prevent_initial_call=True,
+    on_error=lambda exc: ([], html.Div(f"The study did not run: {job_error_text(exc)}.", className="notice"), ""),
 )
 def run_job(set_progress, job):
     """The background job of a request that :func:`request` admitted; :func:`run` checks

@@ -448,7 +448,7 @@ def test_checks_as_plain_functions_give_the_same_outcomes(tiny):
 def test_a_check_that_fails_keeps_what_was_uploaded():
     """A job that died or failed: the campaign list, the chosen campaign and a recording
     under review stay (no_update); the page says that nothing changed and what is
-    accepted, without the error's text (an incident id)."""
+    accepted, with the job queue's public message (paths removed), never a traceback."""
     from dash.exceptions import BackgroundCallbackError
 
     exc = BackgroundCallbackError("An error occurred inside a background callback: the job stopped (/srv/x)\n")
@@ -456,7 +456,7 @@ def test_a_check_that_fails_keeps_what_was_uploaded():
     assert options is no_update and value is no_update
     text = as_json(notices)
     assert "The upload was not checked" in text and "Nothing was changed" in text and "accepted is" in text.lower()
-    assert "incident" in text and "/srv/x" not in text
+    assert "the job stopped" in text and "/srv/x" not in text
     out = D.preview_failed(exc)
     assert len(out) == D.IMPORT_PREVIEW_OUTPUTS and all(v is no_update for v in out[:-1])
     assert "The recording was not read" in as_json(out[-1]) and "/srv/x" not in as_json(out[-1])
