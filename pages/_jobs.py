@@ -12,7 +12,6 @@ before any work; a result whose key is not the ticket's work is refused. Every e
 
 from __future__ import annotations
 
-import os
 import uuid
 
 from dash import Input, Output, State, callback, ctx, dcc, html, no_update
@@ -318,12 +317,3 @@ def budget_refusal(exc) -> dict:
     """The notice of a request above the server's budget (nothing runs)."""
     return notice(f"Refused: {public_message(exc)}. Use fewer points, a shorter record or a coarser step, or run it "
                   f"from the command line.", "error")
-
-
-def estimate_seconds(n_missing: int, duration: float, cores: int | None = None) -> float:
-    """Rough wall time [s] of computing ``n_missing`` test points of ``duration`` [s]."""
-    cores = cores or max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
-    per_point = 0.05 + 0.19 * duration  # kernel ~0.13 s per simulated second plus analysis, this class of machine
-    if n_missing <= 2:
-        return n_missing * per_point
-    return 2.0 + n_missing * per_point / min(cores, n_missing)

@@ -26,7 +26,6 @@ channel missing, an ambiguous mapping) stops the import with an :class:`InputErr
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import os
 import re
@@ -424,15 +423,5 @@ def import_campaign(sources, out, map_path=None, cuts_path=None, rate_hz=None, n
     return report
 
 
-def manifest_cut_rows(report: ImportReport) -> list:
-    """Rows of the cut table (id, kind, source file, start, end [s]) for a review."""
-    return [{k: row[k] for k in ("id", "kind", "speed_rpm", "mean_torque_nm") + CUT_COLUMNS} for row in report.points]
-
-
-def report_json(report: ImportReport) -> str:
-    """The report as JSON text."""
-    return json.dumps(report.to_dict(), indent=2)
-
-
 __all__ = ["ImportReport", "import_campaign", "source_files", "check_cut_rows", "read_cuts", "check_target", "sha256_of",
-           "manifest_cut_rows", "report_json", "SEGMENT_RATE_HZ", "CUT_COLUMNS"]
+           "SEGMENT_RATE_HZ", "CUT_COLUMNS"]

@@ -290,10 +290,6 @@ def cached_view(key_of):
 SETS_SIZE_LIMIT = 2**28
 
 
-def _sets_store():
-    return _open(SETS_SUBDIR, size_limit=SETS_SIZE_LIMIT)
-
-
 def valid_set_id(set_id) -> bool:
     """Whether ``set_id`` has the form of a stored set's id (16 hex digits)."""
     return isinstance(set_id, str) and re.fullmatch(r"[0-9a-f]{16}", set_id) is not None
