@@ -313,6 +313,36 @@ def cost_notice(cost, decision: str, button: str) -> dict:
     return notice(text, "info")
 
 
+def foreground_run(page: str, key: str, system, state: dict, run: bool, compute) -> dict:
+    """The one computation of a page that answers while the browser waits (Explorer,
+    Segments): a cached view under ``key`` at once (no slot); otherwise the cost is
+    admitted as a foreground request (:func:`dampersim.costs.admit`), a point above the
+    autostart budget waits for Run, and ``compute(system, state)`` runs in one of the
+    server's foreground slots. Returns {"view"}, {"pending", "notice"} or {"error",
+    "notice"} (with "busy" when no slot was free); nothing here raises."""
+    try:
+        hit = load_view(key)
+        if hit is not None:
+            return {"view": hit}
+        from dampersim.views.state import state_cost
+
+        cost = state_cost(page, system, state)
+        decision = costs.admit(cost, foreground=True)  # BudgetError above the limit: nothing runs
+        if not run and decision == "ask":
+            return {"pending": True, "notice": cost_notice(cost, decision, "Run")}
+        with costs.foreground_slot():  # ServerBusy at once when every slot computes
+            return {"view": compute(system, state)}
+    except costs.ServerBusy as exc:
+        return {"error": str(exc), "busy": True,
+                "notice": notice(f"Not computed: {exc}. The previous results are kept.", "warning")}
+    except costs.BudgetError as exc:
+        return {"error": public_message(exc), "notice": budget_refusal(exc)}
+    except Exception as exc:
+        msg = public_message(exc, page)
+        return {"error": msg,
+                "notice": notice(f"The test point could not be simulated: {msg}. The previous results are kept.", "error")}
+
+
 def budget_refusal(exc) -> dict:
     """The notice of a request above the server's budget (nothing runs)."""
     return notice(f"Refused: {public_message(exc)}. Use fewer points, a shorter record or a coarser step, or run it "

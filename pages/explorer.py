@@ -11,13 +11,9 @@ from __future__ import annotations
 import dash
 from dash import ALL, Input, Output, State, callback, dcc, html, no_update
 
-from dampersim import costs
-from dampersim.incidents import public_message
 from dampersim.views.explorer import explorer_key, explorer_view
-from dampersim.views.notices import notice
 from dampersim.views.params import control_params, parameter_value, resolve_system
-from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_cost, state_from_controls, to_query
-from dampersim.views.store import load_view
+from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_from_controls, to_query
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "explorer"
@@ -141,31 +137,16 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
                                              "repeat": repeat}, params)
     notices += more
-    try:
-        if load_view(explorer_key(system, state)) is None:
-            cost = state_cost(PAGE, system, state)
-            decision = costs.admit(cost, foreground=True)  # BudgetError above the limit: nothing runs
-            if not run and decision == "ask":
-                notices.append(J.cost_notice(cost, decision, "Run"))
-                return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": to_query(PAGE, state),
-                        "params": state["params"], "error": None, "pending": True, "state": state}
-            with costs.foreground_slot():  # ServerBusy at once when every slot computes
-                view = explorer_view(system, state)
-        else:
-            view = explorer_view(system, state)  # a cache hit takes no slot
-    except costs.ServerBusy as exc:
-        notices.append(notice(f"Not computed: {exc}. The previous results are kept.", "warning"))
+    out = J.foreground_run(PAGE, explorer_key(system, state), system, state, run, explorer_view)
+    if "notice" in out:
+        notices.append(out["notice"])
+    if out.get("pending"):
+        return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": to_query(PAGE, state),
+                "params": state["params"], "error": None, "pending": True, "state": state}
+    if "error" in out:
         return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
-                "error": str(exc), "state": state, "pending": False, "busy": True}
-    except costs.BudgetError as exc:
-        notices.append(J.budget_refusal(exc))
-        return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
-                "error": public_message(exc), "state": state, "pending": False}
-    except Exception as exc:
-        msg = public_message(exc, "explorer")
-        notices.append(notice(f"The test point could not be simulated: {msg}. The previous results are kept.", "error"))
-        return {"figures": None, "table": None, "kpis": None, "notices": notices, "search": None, "params": None,
-                "error": msg, "state": state, "pending": False}
+                "error": out["error"], "state": state, "pending": False, **({"busy": True} if out.get("busy") else {})}
+    view = out["view"]
     return {"figures": view["figures"], "table": _orders_table(view["orders"], state.get("repeat")), "kpis": _kpis(view), "notices": notices,
             "search": to_query(PAGE, state), "params": state["params"], "error": None, "state": state, "view": view,
             "pending": False}

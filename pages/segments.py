@@ -11,13 +11,9 @@ from __future__ import annotations
 import dash
 from dash import Input, Output, State, callback, dcc, html, no_update
 
-from dampersim import costs
-from dampersim.incidents import public_message
-from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
 from dampersim.views.segments import segments_key, segments_view
-from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_cost, state_from_controls, to_query
-from dampersim.views.store import load_view
+from dampersim.views.state import orders_text_from_rows, page_href, parse_query, state_from_controls, to_query
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "segments"
@@ -83,27 +79,15 @@ def segments_outputs(speed, torque, ks, amps, phases, duration, spring, window, 
                                              "spring": spring, "window": window, "span": span, "gain": gain}, base_params)
     notices += more
     system = resolve_system(state["params"], notices)
-    try:
-        if load_view(segments_key(system, state)) is None:
-            cost = state_cost(PAGE, system, state)
-            decision = costs.admit(cost, foreground=True)
-            if not run and decision == "ask":
-                notices.append(J.cost_notice(cost, decision, "Run"))
-                return {"view": None, "state": state, "notices": notices, "error": None, "pending": True}
-            with costs.foreground_slot():  # ServerBusy at once when every slot computes
-                view = segments_view(system, state)
-        else:
-            view = segments_view(system, state)  # a cache hit takes no slot
-    except costs.ServerBusy as exc:
-        notices.append(notice(f"Not computed: {exc}. The previous results are kept.", "warning"))
-        return {"view": None, "state": state, "notices": notices, "error": str(exc), "pending": False, "busy": True}
-    except costs.BudgetError as exc:
-        notices.append(J.budget_refusal(exc))
-        return {"view": None, "state": state, "notices": notices, "error": public_message(exc), "pending": False}
-    except Exception as exc:
-        msg = public_message(exc, "segments")
-        notices.append(notice(f"The test point could not be simulated: {msg}. The previous results are kept.", "error"))
-        return {"view": None, "state": state, "notices": notices, "error": msg, "pending": False}
+    out = J.foreground_run(PAGE, segments_key(system, state), system, state, run, segments_view)
+    if "notice" in out:
+        notices.append(out["notice"])
+    if out.get("pending"):
+        return {"view": None, "state": state, "notices": notices, "error": None, "pending": True}
+    if "error" in out:
+        return {"view": None, "state": state, "notices": notices, "error": out["error"], "pending": False,
+                **({"busy": True} if out.get("busy") else {})}
+    view = out["view"]
     return {"view": view, "state": state, "notices": notices, "error": None, "pending": False}
 
 
