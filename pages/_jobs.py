@@ -12,6 +12,7 @@ before any work; a result whose key is not the ticket's work is refused. Every e
 
 from __future__ import annotations
 
+import time
 import uuid
 
 from dash import Input, Output, State, callback, ctx, dcc, html, no_update
@@ -238,20 +239,89 @@ def run_ticket(page: str, job, job_data, progress) -> dict:
     return {**out, "nonce": nonce}
 
 
-def checked_job_state(page: str, job_data, prepare):
-    """(state, system) of a job's request after validating it again like a link: the state
-    through ``prepare(state) -> (state, system, notices)`` (the page's parser), then the
-    budget on its whole cost (:func:`dampersim.costs.admit`). Raises InputError naming
+def checked_job_state(page: str, job_data):
+    """(state, system) of a job's request after validating it again like a link (the
+    page's fields and parameter state, :func:`dampersim.views.state.reparse_state`), then
+    the budget on its whole cost (:func:`dampersim.costs.admit`). Raises InputError naming
     what is refused, before any work."""
+    from dampersim.views.params import resolve_system
+    from dampersim.views.state import reparse_state, state_cost
+
     raw = job_data.get("state") if isinstance(job_data, dict) else None
-    state, system, notices = prepare(raw)
+    state, notices = reparse_state(page, raw)
+    system = resolve_system(state["params"], notices)
     if notices:
         raise InputError("the request is not valid any more (" + "; ".join(n["text"] for n in notices)
                          + "); press Run to start it again")
-    from dampersim.views.state import state_cost
-
     costs.admit(state_cost(page, system, state))
     return state, system
+
+
+def sweep_request(page: str, state: dict, system, notices: list, run: bool, initial: bool, autorun: bool, *,
+                  view, status, key, noun: str, refused: str, button: str) -> dict:
+    """The foreground part of a sweep page (Colourmap, Maps): the whole sweep admitted
+    before any look-up (refused above the budget), a cached view shown at once, else the
+    missing points' cost: the job starts on Run, or from a link within the autostart
+    budget, otherwise the estimate waits for ``button``. ``view(system, state,
+    cache_only=True)``, ``status(system, state)`` -> {"total", "cached"} and ``key(system,
+    state)`` are the page's; ``refused`` starts the message of a sweep that cannot run."""
+    from dampersim.errors import DampersimError
+    from dampersim.views.state import state_cost, to_query
+
+    out = {"search": to_query(page, state), "params": state["params"], "notices": notices}
+    try:
+        costs.admit(state_cost(page, system, state))  # the whole sweep, before any look-up
+        hit = view(system, state, cache_only=True)
+        st = status(system, state)
+    except costs.BudgetError as exc:
+        out["notices"] = notices + [budget_refusal(exc)]
+        out["status"] = "Not started."
+        return out
+    except DampersimError as exc:
+        out["notices"] = notices + [notice(f"{refused}: {public_message(exc)}", "error")]
+        out["status"] = "Not started."
+        return out
+    if hit is not None:
+        out["hit"] = {"key": hit["key"], "from": "cache"}
+        out["status"] = "Loading from the cache…"
+        return out
+    cost = state_cost(page, system, state, n_points=st["total"] - st["cached"])
+    decision = costs.admit(cost)
+    if run or (initial and autorun and decision == "run" and not notices):  # a control's value refused: wait for Run
+        out["job"] = {"state": state, "work": key(system, state)}
+        out["status"] = f"Starting the {noun}: {st['total']} test points, {st['cached']} already in the cache…"
+        return out
+    out["status"] = render_notices([cost_notice(cost, decision, button)])
+    return out
+
+
+def sweep_job(page: str, job_data, progress, *, points, view) -> dict:
+    """The background part of a sweep page: the request validated again
+    (:func:`checked_job_state`), then ``view(system, state, progress=...)`` with progress
+    lines that say how many other jobs share the cores; {"key"} or {"error"}."""
+    from dampersim.errors import DampersimError
+    from dampersim.views.sweeps import SweepRegistry
+
+    try:
+        state, system = checked_job_state(page, job_data)
+    except DampersimError as exc:
+        return {"error": public_message(exc)}
+    reg = SweepRegistry()
+    t0 = time.monotonic()
+    try:
+        total = len(points(state))
+        reg.start(page, total)
+        progress(0, total, f"0 / {total} test points · starting worker processes…")
+
+        def on_progress(done, total, cached):
+            reg.beat()
+            progress(done, total, progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
+
+        return {"key": view(system, state, progress=on_progress)["key"]}
+    except Exception as exc:  # keep the server's page alive with a message that leaks nothing
+        return {"error": public_message(exc, f"{page} job")}
+    finally:
+        reg.stop()
 
 
 class SimpleCallbacks:

@@ -9,14 +9,9 @@ finished test points are cached, so a repeated or continued sweep is fast.
 
 from __future__ import annotations
 
-import time
-
 import dash
 from dash import Input, Output, dcc, html
 
-from dampersim import costs
-from dampersim.errors import DampersimError
-from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
 from dampersim.views.state import (
@@ -24,12 +19,9 @@ from dampersim.views.state import (
     orders_text_from_rows,
     parse_orders_deg,
     parse_query,
-    reparse_state,
-    state_cost,
     state_from_controls,
-    to_query,
 )
-from dampersim.views.sweeps import colourmap_key, colourmap_points, colourmap_status, colourmap_view, SweepRegistry
+from dampersim.views.sweeps import colourmap_key, colourmap_points, colourmap_status, colourmap_view
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "colourmap"
@@ -110,71 +102,20 @@ def state_from_values(values, base_params):
     return state, system, notices + more
 
 
-def prepare(raw_state):
-    """A stored or posted state validated again like a link -> (state, system, notices)."""
-    state, notices = reparse_state(PAGE, raw_state)
-    system = resolve_system(state["params"], notices)
-    return state, system, notices
-
-
 def request(run, initial, values, base_params, autorun):
     """Foreground part: validate, mirror into the URL, show a cached view at once, refuse a
     sweep above the server's budget, start one within the autostart budget from a link
     (any size within the limit on Run), else show its estimate and wait for Run."""
     state, system, notices = state_from_values(values, base_params)
-    out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
-    try:
-        costs.admit(state_cost(PAGE, system, state))  # the whole sweep, before any look-up
-        view = colourmap_view(system, state, cache_only=True)
-        st = colourmap_status(system, state)
-    except costs.BudgetError as exc:
-        out["notices"] = notices + [J.budget_refusal(exc)]
-        out["status"] = "Not started."
-        return out
-    except DampersimError as exc:
-        out["notices"] = notices + [notice(f"This sweep cannot run: {public_message(exc)}", "error")]
-        out["status"] = "Not started."
-        return out
-    if view is not None:
-        out["hit"] = {"key": view["key"], "from": "cache"}
-        out["status"] = "Loading from the cache…"
-        return out
-    missing = st["total"] - st["cached"]
-    cost = state_cost(PAGE, system, state, n_points=missing)
-    decision = costs.admit(cost)
-    if run or (initial and autorun and decision == "run" and not notices):  # a control's value refused: wait for Run
-        out["job"] = {"state": state, "work": colourmap_key(system, state)}
-        out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
-        return out
-    out["status"] = W.render_notices([J.cost_notice(cost, decision, "Run sweep")])
-    return out
+    return J.sweep_request(PAGE, state, system, notices, run, initial, autorun, view=colourmap_view, status=colourmap_status,
+                           key=colourmap_key, noun="sweep", refused="This sweep cannot run", button="Run sweep")
 
 
 def job(job_data, progress):
     """Background part: validate the request again (state and budget), then run the sweep
     with progress; a cancelled job is killed by Dash (the finished points are in the
     cache already)."""
-    try:
-        state, system = J.checked_job_state(PAGE, job_data, prepare)
-    except DampersimError as exc:
-        return {"error": public_message(exc)}
-    reg = SweepRegistry()
-    t0 = time.monotonic()
-    try:
-        total = len(colourmap_points(state))
-        reg.start(PAGE, total)
-        progress(0, total, f"0 / {total} test points · starting worker processes…")
-
-        def on_progress(done, total, cached):
-            reg.beat()
-            progress(done, total, J.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
-
-        view = colourmap_view(system, state, progress=on_progress)
-        return {"key": view["key"]}
-    except Exception as exc:  # keep the server's page alive with a message that leaks nothing
-        return {"error": public_message(exc, "colourmap job")}
-    finally:
-        reg.stop()
+    return J.sweep_job(PAGE, job_data, progress, points=colourmap_points, view=colourmap_view)
 
 
 def render(view):

@@ -20,7 +20,7 @@ from dampersim.incidents import public_message
 from dampersim.views.hysteresis import PROTOCOL_NAMES, hysteresis_key, hysteresis_view, protocol_label, simulated_seconds
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
-from dampersim.views.state import (MAX_LOOP_SPEEDS, PAGES, parse_query, reparse_state, state_cost, state_from_controls,
+from dampersim.views.state import (MAX_LOOP_SPEEDS, PAGES, parse_query, state_cost, state_from_controls,
                                    to_query)
 from pages import _frame as F, _jobs as J, _widgets as W
 
@@ -86,13 +86,6 @@ def state_from_values(values, base_params):
     return state, system, notices
 
 
-def prepare(raw_state):
-    """A stored or posted state validated again like a link -> (state, system, notices)."""
-    state, notices = reparse_state(PAGE, raw_state)
-    system = resolve_system(state["params"], notices)
-    return state, system, notices
-
-
 def request(run, initial, values, base_params, autorun):
     """Foreground part: validate, cache hit, budget refusal, autostart within the
     autostart budget, else the estimate and the Run button."""
@@ -127,7 +120,7 @@ def request(run, initial, values, base_params, autorun):
 def job(job_data, progress):
     """Background part: validate the request again (state and budget), then run the ramps."""
     try:
-        state, system = J.checked_job_state(PAGE, job_data, prepare)
+        state, system = J.checked_job_state(PAGE, job_data)
     except DampersimError as exc:
         return {"error": public_message(exc)}
     t0 = time.monotonic()

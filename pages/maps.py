@@ -9,19 +9,13 @@ URL keys: ``speeds`` [rpm], ``torques`` [N m] (value, list or START:STOP:STEP), 
 
 from __future__ import annotations
 
-import time
-
 import dash
 from dash import Input, Output, dcc, html
 
-from dampersim import costs
-from dampersim.errors import DampersimError
-from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import resolve_system
-from dampersim.views.state import (PAGES, orders_text_from_rows, parse_query, reparse_state, state_cost, state_from_controls,
-                                   to_query)
-from dampersim.views.sweeps import maps_key, maps_points, maps_status, maps_view, SweepRegistry
+from dampersim.views.state import PAGES, orders_text_from_rows, parse_query, state_from_controls
+from dampersim.views.sweeps import maps_key, maps_points, maps_status, maps_view
 from pages import _frame as F, _jobs as J, _widgets as W
 
 PAGE = "maps"
@@ -100,67 +94,17 @@ def state_from_values(values, base_params):
     return state, system, notices + more
 
 
-def prepare(raw_state):
-    """A stored or posted state validated again like a link -> (state, system, notices)."""
-    state, notices = reparse_state(PAGE, raw_state)
-    system = resolve_system(state["params"], notices)
-    return state, system, notices
-
-
 def request(run, initial, values, base_params, autorun):
     """Foreground part, as the Colourmap page's: validate, cache hit, budget refusal,
     autostart within the autostart budget, else the estimate and the Run button."""
     state, system, notices = state_from_values(values, base_params)
-    out = {"search": to_query(PAGE, state), "params": state["params"], "notices": notices}
-    try:
-        costs.admit(state_cost(PAGE, system, state))
-        view = maps_view(system, state, cache_only=True)
-        st = maps_status(system, state)
-    except costs.BudgetError as exc:
-        out["notices"] = notices + [J.budget_refusal(exc)]
-        out["status"] = "Not started."
-        return out
-    except DampersimError as exc:
-        out["notices"] = notices + [notice(f"This map cannot be built: {public_message(exc)}", "error")]
-        out["status"] = "Not started."
-        return out
-    if view is not None:
-        out["hit"] = {"key": view["key"], "from": "cache"}
-        out["status"] = "Loading from the cache…"
-        return out
-    cost = state_cost(PAGE, system, state, n_points=st["total"] - st["cached"])
-    decision = costs.admit(cost)
-    if run or (initial and autorun and decision == "run" and not notices):  # a control's value refused: wait for Run
-        out["job"] = {"state": state, "work": maps_key(system, state)}
-        out["status"] = f"Starting the sweep: {st['total']} test points, {st['cached']} already in the cache…"
-        return out
-    out["status"] = W.render_notices([J.cost_notice(cost, decision, "Run map")])
-    return out
+    return J.sweep_request(PAGE, state, system, notices, run, initial, autorun, view=maps_view, status=maps_status,
+                           key=maps_key, noun="sweep", refused="This map cannot be built", button="Run map")
 
 
 def job(job_data, progress):
     """Background part: validate the request again (state and budget), then run the map."""
-    try:
-        state, system = J.checked_job_state(PAGE, job_data, prepare)
-    except DampersimError as exc:
-        return {"error": public_message(exc)}
-    reg = SweepRegistry()
-    t0 = time.monotonic()
-    try:
-        total = len(maps_points(state))
-        reg.start(PAGE, total)
-        progress(0, total, f"0 / {total} test points · starting worker processes…")
-
-        def on_progress(done, total, cached):
-            reg.beat()
-            progress(done, total, J.progress_text(done, total, cached, time.monotonic() - t0, reg.others()))
-
-        view = maps_view(system, state, progress=on_progress)
-        return {"key": view["key"]}
-    except Exception as exc:
-        return {"error": public_message(exc, "maps job")}
-    finally:
-        reg.stop()
+    return J.sweep_job(PAGE, job_data, progress, points=maps_points, view=maps_view)
 
 
 def render(view):
