@@ -514,6 +514,18 @@ class JobQueueManager(DiskcacheManager):
             proc.join(timeout=1.0)
         return ids
 
+    def close(self) -> list:
+        """:meth:`shutdown`, then forget this manager: :func:`shutdown_jobs` no longer
+        reaches it and Dash registers no further callbacks with it (a server keeps its
+        manager for life; tests build and close many). Returns the ids of the jobs ended."""
+        from dash.background_callback.managers import BaseBackgroundCallbackManager
+
+        ids = self.shutdown()
+        for registry in (_MANAGERS, BaseBackgroundCallbackManager.managers):
+            if self in registry:
+                registry.remove(self)
+        return ids
+
 
 def _progress_outputs() -> int:
     """Number of progress outputs of the callback this request polls (3 when unknown)."""

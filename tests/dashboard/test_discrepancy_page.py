@@ -309,7 +309,7 @@ def test_layout_over_http_good_and_bad_links(dc):
     assert "notice-warning" in bad and "campaign='nope'" in bad and f"Using the example {EXAMPLE}" in bad
 
 
-def test_bad_upload_over_http_gives_the_notice(dc, jobs_here):
+def test_bad_upload_over_http_gives_the_notice(dc, cache_dir):
     """Through the real job queue and its fork server: the job process finds the check by its
     Dash key after importing app; the upload reaches it only as the callback's argument."""
     contents = zip_upload({"readme.txt": b"no campaign here " + os.urandom(2048)})  # random: a unique marker
@@ -338,7 +338,7 @@ def test_bad_upload_over_http_gives_the_notice(dc, jobs_here):
     private = [Path(manager._store), Path(manager.registry.folder)]
     assert all(stat.S_IMODE(p.stat().st_mode) == 0o700 for p in private)
     raw = base64.b64decode(contents.split(",", 1)[1])[-300:]
-    for f in files_written_since(t0, [jobs_here, *(p.parent for p in private), Path(tempfile.gettempdir())]):
+    for f in files_written_since(t0, [cache_dir, *(p.parent for p in private), Path(tempfile.gettempdir())]):
         if not any(p in f.parents for p in private):
             data = f.read_bytes()
             assert marker not in data and raw not in data, f"a copy of the upload in {f.name}"
@@ -505,11 +505,7 @@ def test_identical_diagnosis_requests_share_one_job(tmp_path):
         poll_all([*tabs, other], budget_s=60.0)  # budget: fork server start (~2 s) and two 0.3 s jobs
         assert tabs[0].result == tabs[1].result and tabs[0].result["pid"] != other.result["pid"]
     finally:
-        manager.shutdown()
-        _background._MANAGERS.remove(manager)
-        from dash.background_callback.managers import BaseBackgroundCallbackManager
-
-        BaseBackgroundCallbackManager.managers.remove(manager)
+        manager.close()
 
 
 @pytest.mark.parametrize("job_data, expect", [

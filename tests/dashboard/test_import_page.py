@@ -262,7 +262,7 @@ def test_forged_or_unknown_upload_ids_are_refused(cache_dir, recordings):
 
 
 # ----------------------------------------------------------------------------- over HTTP
-def test_preview_and_create_over_http(jobs_here, recordings):
+def test_preview_and_create_over_http(cache_dir, recordings):
     """The preview runs as a job of the job queue (fork server, job process importing app),
     the campaign is created in the request thread from what the job staged."""
     dc = DashClient(app.app)

@@ -170,9 +170,7 @@ def manager_factory(tmp_path):
 
     yield make
     for m in made:
-        m.shutdown()
-        _background._MANAGERS.remove(m)
-        BaseBackgroundCallbackManager.managers.remove(m)
+        m.close()
 
 
 # ----------------------------------------------------------------------- tests

@@ -16,12 +16,11 @@ import sys
 import time
 
 import pytest
-from dash.background_callback.managers import BaseBackgroundCallbackManager
 from flask import Flask, request
 
 from dampersim.jobs import FAILED, JobRegistry
 from dampersim.views import tickets
-from pages import _background, _jobs, _sessions
+from pages import _jobs, _sessions
 from pages._background import ANONYMOUS, SESSION_COOKIE, current_session, install_sessions, make_manager, sign_session
 from tests.hardening.test_background_manager import Caller, poll_all
 from tests.hardening.test_background_manager import warm_fork_server  # noqa: F401  (module fixture: fork server warm)
@@ -40,9 +39,7 @@ def dashboard_manager(tmp_path, cache_dir):
 
     yield make
     for m in made:
-        m.shutdown()
-        _background._MANAGERS.remove(m)
-        BaseBackgroundCallbackManager.managers.remove(m)
+        m.close()
 
 
 def _job_id(manager, caller):

@@ -15,9 +15,7 @@ import time
 
 import diskcache
 import pytest
-from dash.background_callback.managers import BaseBackgroundCallbackManager
 
-from pages import _background
 from pages._background import make_manager
 from tests.hardening.test_background_manager import FUNCTIONS, POLL_S, Caller
 from tests.hardening.test_background_manager import warm_fork_server  # noqa: F401  (module fixture: fork server warm)
@@ -61,9 +59,7 @@ def _run_while_a_thread_holds_a_transaction(tmp_path, start_method, budget_s):
         return caller.result
     finally:
         release.set()
-        manager.shutdown()
-        _background._MANAGERS.remove(manager)
-        BaseBackgroundCallbackManager.managers.remove(manager)
+        manager.close()
         shared.close()
 
 
@@ -102,6 +98,4 @@ def test_a_job_sees_the_servers_settings_of_now_not_the_fork_servers(tmp_path, m
             results.append(caller.result)
         assert results == [{"cache": str(tmp_path / "first")}, {"cache": str(tmp_path / "second")}], results
     finally:
-        manager.shutdown()
-        _background._MANAGERS.remove(manager)
-        BaseBackgroundCallbackManager.managers.remove(manager)
+        manager.close()
