@@ -213,6 +213,13 @@ def _cli_sweep(args):
     return system, result, out_dir, table_path
 
 
+
+def _run_summary(result, table_path, figures) -> dict:
+    """The JSON fields every sweep command reports: points, how they were obtained, the
+    wall time [s] and the files written."""
+    return {"points": result.n_points, "computed": result.computed, "from_cache": result.from_cache,
+            "wall_time_s": result.wall_time, "table": table_path, "figures": figures}
+
 def cmd_sweep(args) -> int:
     """Run a sweep, write ``OUT/sweep.parquet`` (and figures), print a summary."""
     system, result, out_dir, table_path = _cli_sweep(args)
@@ -220,14 +227,7 @@ def cmd_sweep(args) -> int:
     for note in notes:
         print(note, file=sys.stderr)
     if args.json:
-        print(json.dumps({
-            "points": result.n_points,
-            "computed": result.computed,
-            "from_cache": result.from_cache,
-            "wall_time_s": result.wall_time,
-            "table": table_path,
-            "figures": figures,
-        }))
+        print(json.dumps(_run_summary(result, table_path, figures)))
     else:
         rate = result.n_points / result.wall_time if result.wall_time > 0 else float("inf")
         print(f"{system.name}: {result.n_points} test points in {result.wall_time:.2f} s "
@@ -268,12 +268,7 @@ def cmd_map(args) -> int:
     except Exception as exc:  # the figure is a by-product: never lose the table for it
         print(f"figure skipped: {type(exc).__name__}: {exc}", file=sys.stderr)
     summary = {
-        "points": result.n_points,
-        "computed": result.computed,
-        "from_cache": result.from_cache,
-        "wall_time_s": result.wall_time,
-        "table": table_path,
-        "figures": figures,
+        **_run_summary(result, table_path, figures),
         "knee_nm": knee,
         "zones": zones,
         "share_of_map_above_one": float(np.mean(mmap.above_one[np.isfinite(mmap.magnification)]))
