@@ -332,6 +332,21 @@ def test_two_server_processes_share_one_global_limit(tmp_path):
 
 
 # ----------------------------------------------------------------------- through Dash's HTTP endpoint
+@pytest.fixture
+def own_dash_app():
+    """This module's test app takes over Dash's global callback list when it serves its
+    first request (Dash moves every callback defined so far into the app it sets up). The
+    dashboard's page callbacks, registered by ``import app`` in other tests, are put back
+    afterwards so that tests which inspect them do not depend on the order they run in."""
+    from dash import _callback
+
+    saved_list, saved_map = list(_callback.GLOBAL_CALLBACK_LIST), dict(_callback.GLOBAL_CALLBACK_MAP)
+    yield
+    _callback.GLOBAL_CALLBACK_LIST[:] = saved_list
+    _callback.GLOBAL_CALLBACK_MAP.clear()
+    _callback.GLOBAL_CALLBACK_MAP.update(saved_map)
+
+
 def _dash_app(manager):
     from dash import Dash, Input, Output, dcc, html
 
@@ -380,7 +395,7 @@ class HttpTab:
         return self.answer is None
 
 
-def test_through_dash_http_identical_work_is_shared_and_errors_stay_private(manager_factory):
+def test_through_dash_http_identical_work_is_shared_and_errors_stay_private(manager_factory, own_dash_app):
     # this app's callbacks are closures of a test function: no other process can import
     # them, so its jobs are forked from the test process (which holds no SQLite lock in
     # another thread); the dashboard's own jobs are started by the fork server
