@@ -1,7 +1,8 @@
 """Commands ``effects``, ``synth`` and ``diagnose``: the discrepancy workflow from synthetic campaign to named missing effect.
 
 Register the commands with :func:`add_parsers`; each command function takes the parsed
-``args`` and returns the exit status 0, bad input raises a
+``args`` and returns the exit status: 0, or 2 for a campaign that cannot be diagnosed
+(verdict ``insufficient_data``, still printed); other bad input raises a
 :class:`~dampersim.errors.DampersimError`.
 """
 
@@ -59,7 +60,7 @@ def cmd_synth(args) -> int:
 def cmd_diagnose(args) -> int:
     """Diagnose a campaign; print the verdict, optionally write the augmented set and a report."""
     from dampersim.discrepancy.campaign import read_campaign
-    from dampersim.discrepancy.diagnose import diagnose
+    from dampersim.discrepancy.diagnose import INSUFFICIENT, diagnose
     from dampersim.parameters import save_toml
 
     camp = read_campaign(args.campaign)
@@ -77,6 +78,14 @@ def cmd_diagnose(args) -> int:
 
     diag = diagnose(camp, system, workers=args.workers, progress=progress)
     out = jsonable(diag.to_json())
+    for q in diag.problems[len(camp.problems):]:  # the model runs that failed
+        print(f"{q['point']} [{q['field']}]: {q['message']}", file=sys.stderr)
+    if diag.verdict == INSUFFICIENT:
+        # the verdict goes out as usual; no report and no parameter set, since nothing was fitted
+        print(json.dumps(out, indent=2) if args.json else f"verdict: {diag.verdict}")
+        print(f"error: campaign {camp.name}: {diag.message}"
+              + (" No report or parameter set written." if args.report or args.out_params else ""), file=sys.stderr)
+        return 2
     if args.out_params:
         import dataclasses
 
@@ -95,9 +104,11 @@ def cmd_diagnose(args) -> int:
         print(f"verdict: {diag.verdict}" + (f" -> {diag.effect} {diag.effect_parameters}" if diag.effect else ""))
         print(f"noise floor {diag.noise_floor_nm:.3f} N m; held-out gap before {diag.gap_before_nm:.3f}, "
               f"calibrated {diag.gap_calibrated_nm:.3f}, after {diag.gap_after_nm:.3f} N m")
+        print(diag.message)
         for r in diag.ranking:
             g = r["gap_held_out_nm"]
-            print(f"  {r['effect']:24s} " + (f"held-out gap {g:.3f} N m {r['parameters']}" if g is not None else "screened out"))
+            print(f"  {r['effect']:24s} " + (f"held-out gap {g:.3f} N m {r['parameters']}" if g is not None
+                                             else r["excluded"] or "screened out"))
     return 0
 
 

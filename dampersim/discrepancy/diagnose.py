@@ -2,7 +2,9 @@
 
 Gaps are RMS output order-amplitude errors (orders 1-8) in N m over test points; the
 verdict is always judged on held-out points (every third torsional point), which the
-calibration and the effect fits never see.
+calibration and the effect fits never see. A failed model run is never a match: its
+point is left out (listed under ``problems``), its trial rejected, its candidate not
+ranked. A campaign that cannot be diagnosed gets the verdict ``insufficient_data``.
 """
 
 from __future__ import annotations
@@ -15,13 +17,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dampersim.discrepancy import drive
-from dampersim.discrepancy.effects import EFFECTS, NAMES, info, parameters_of, with_effect
-from dampersim.errors import InputError
+from dampersim.discrepancy.effects import NAMES, info, parameters_of, with_effect
 from dampersim.parameters import default_parameters, with_updates
 from dampersim.parameters.io import flat_values
 
 #: fewest valid torsional test points a diagnosis accepts (every third is held out)
 MIN_TORSIONAL_POINTS = 3
+#: fewest distinct speeds: at one speed a calibration cannot tell inertia from stiffness,
+#: nor a speed-dependent effect from a calibration factor
+MIN_SPEEDS = 2
+#: speeds within this share of each other count as one: an imported campaign carries the
+#: measured mean speed, which scatters by tenths of a per cent around the set point
+SAME_SPEED_SHARE = 0.02
+#: the verdict of a campaign that cannot be diagnosed (``missing`` says what it lacks)
+INSUFFICIENT = "insufficient_data"
 
 #: estimated parameters of [thesis] §6.1 re-fitted by the calibration (log scale factors)
 CALIBRATION = {
@@ -69,6 +78,8 @@ class Diagnosis:
     simulations: int = 0
     wall_time_s: float = 0.0
     system: object = None  # augmented (or calibrated) parameter set
+    message: str = ""  # the verdict in one sentence (for INSUFFICIENT: what is missing, what is accepted)
+    missing: list = field(default_factory=list)  # INSUFFICIENT: "torsional_points", "speeds", "held_out_points"
 
     def to_json(self) -> dict:
         return {
@@ -87,6 +98,8 @@ class Diagnosis:
             "problems": self.problems,
             "simulations": self.simulations,
             "wall_time_s": self.wall_time_s,
+            "message": self.message,
+            "missing": self.missing,
         }
 
 
@@ -98,7 +111,6 @@ def _rms(x) -> float:
 
 def calibrated_system(system, x: np.ndarray):
     """``system`` with the calibration factors exp(x) applied."""
-
     flat = flat_values(system)
     upd = {}
     for xi, names in zip(x, CALIBRATION.values()):
@@ -110,7 +122,6 @@ def calibrated_system(system, x: np.ndarray):
 
 def coarse_system(system):
     """``system`` with the spring segment counts scaled by COARSE_SEGMENTS (at least 4)."""
-
     so = system.solver
     return with_updates(system, {
         "solver.outer_segments": max(4, round(so.outer_segments * COARSE_SEGMENTS)),
@@ -118,18 +129,56 @@ def coarse_system(system):
     }, check=False)
 
 
-def _orders_of(runner, system, points) -> np.ndarray:
-    sysd = drive.diagnosis_system(system)
-    out = runner.map([(sysd, p) for p in points])
-    rows = []
-    for r in out:
-        rows.append(r["orders"] if "orders" in r else np.full(len(drive.ORDERS), np.nan))
-    return np.array(rows)
-
-
 def _resid(sim, meas):
-    r = sim - meas
-    return np.where(np.isfinite(r), r, 0.0)
+    """Model minus measurement [N m]. A failed run stays NaN: read as 0 it would be a
+    perfect match, and a candidate that crashes the model could win."""
+    return np.asarray(sim, dtype=float) - np.asarray(meas, dtype=float)
+
+
+def speeds_of(points) -> list:
+    """Distinct nominal speeds [rpm] of ``points``, ascending (within SAME_SPEED_SHARE of
+    the first of a group count as one)."""
+    out = []
+    for s in sorted(p.speed_rpm for p in points):
+        if not out or s > out[-1] * (1.0 + SAME_SPEED_SHARE):
+            out.append(s)
+    return out
+
+
+def shortfall(points, ramps: int = 0, left_out=()) -> tuple:
+    """What torsional ``points`` lack for a diagnosis: (missing, message), ([], "") when
+    nothing. ramps: number of ramp points; left_out: ids of points whose model run failed."""
+    n, speeds = len(points), speeds_of(points)
+    missing, lacks = [], []
+    if n == 0:
+        missing.append("torsional_points")
+        lacks.append("no valid torsional test point" + (f" ({ramps} ramp(s): ramps are evidence only and do not enter "
+                                                          "the verdict)" if ramps else ""))
+    elif n < MIN_TORSIONAL_POINTS:
+        missing.append("torsional_points")
+        lacks.append(f"only {n} valid torsional test point(s) ({', '.join(p.id for p in points)}): too few to calibrate "
+                     "and to check on held-out points")
+    if n >= 2 and len(speeds) < MIN_SPEEDS:
+        missing.append("speeds")
+        lacks.append(f"all {n} torsional test points are at one speed ({speeds[0]:.0f} rpm): at one speed the calibration "
+                     "cannot tell inertia from stiffness, nor a speed-dependent effect from a calibration factor")
+    if not missing:
+        return [], ""
+    if left_out:
+        lacks.append(f"{len(left_out)} torsional point(s) were left out because the model run failed there "
+                     f"({', '.join(left_out)}; see problems)")
+    return missing, ("not diagnosed: " + "; ".join(lacks) + f". Accepted: at least {MIN_TORSIONAL_POINTS} valid "
+                     f"torsional test points (two to fit, every third held out for the verdict) at {MIN_SPEEDS} or more "
+                     f"speeds (speeds within {100 * SAME_SPEED_SHARE:g} % count as one).")
+
+
+def _not_diagnosed(system, missing, message, problems, simulations, t0) -> Diagnosis:
+    """The Diagnosis of a campaign that cannot be diagnosed: every field present, no numbers."""
+    nan = float("nan")
+    return Diagnosis(verdict=INSUFFICIENT, effect=None, effect_parameters={}, ranking=[], noise_floor_nm=nan,
+                     gap_before_nm=nan, gap_calibrated_nm=nan, gap_after_nm=nan, held_out_points=[],
+                     problems=problems, simulations=simulations, wall_time_s=time.perf_counter() - t0, system=system,
+                     message=message, missing=list(missing))
 
 
 def _effect_grid(name, n=5):
@@ -164,8 +213,11 @@ def _lstsq_bounded(J, r, x0):
 
 
 def _cal_cost(resid_w, x) -> float:
-    """The regularised objective of :func:`_lstsq_bounded` (weighted residuals resid_w)."""
+    """The regularised objective of :func:`_lstsq_bounded` (weighted residuals resid_w);
+    infinite when a residual is not finite (a failed run is never a good fit)."""
     resid_w = np.asarray(resid_w, dtype=float)
+    if not np.all(np.isfinite(resid_w)):
+        return math.inf
     return float(np.sum(resid_w * resid_w) + np.sum(np.asarray(x) ** 2) / PRIOR_LOG_SD ** 2)
 
 
@@ -194,32 +246,47 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     """Run the whole workflow on a :class:`~dampersim.discrepancy.campaign.Campaign`.
 
     system: the parameter set to diagnose (default set if None); progress(fraction, text)
-    is called between steps; candidates: effect names to consider (default all).
+    is called between steps; candidates: effect names to consider (default all). A
+    campaign that cannot be diagnosed gives the verdict INSUFFICIENT (see :func:`shortfall`).
     """
 
     t0 = time.perf_counter()
     system = system or default_parameters()
     cands = list(candidates or NAMES)
-    pts = campaign.torsional
-    if len(pts) < MIN_TORSIONAL_POINTS:
-        raise InputError(f"campaign {campaign.name}: {len(pts)} valid torsional points; the diagnosis needs at "
-                         f"least {MIN_TORSIONAL_POINTS}")
     report = progress or (lambda f, s: None)
-    held = [i for i in range(len(pts)) if i % 3 == 1]
-    train = [i for i in range(len(pts)) if i % 3 != 1]
-    meas = np.array([drive.measured_orders(p) for p in pts])
-    spread = np.array([drive.split_half_spread(p) for p in pts])
-    floor = math.sqrt(_rms(spread) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2)
-    ptr = [pts[i] for i in train]
+    problems = [{"file": q.file, "field": q.field, "point": q.point, "message": q.message} for q in campaign.problems]
+    every = campaign.torsional
+    missing, message = shortfall(every, len(campaign.ramps))
+    if missing:
+        return _not_diagnosed(system, missing, message, problems, 0, t0)
+    meas = np.array([drive.measured_orders(p) for p in every])
+    spread = np.array([drive.split_half_spread(p) for p in every])
     with drive.Runner(workers) as runner:
         # 1) compare
         report(0.02, "compare: driving the model with every measured input torque")
-        y0 = _orders_of(runner, system, pts)
+        err0, err_coarse = {}, {}
+        y0 = drive.orders_of(runner, system, every, err0)
         # the model's own discretisation uncertainty joins the noise floor, measured as
         # the change of the order amplitudes when the same drive runs with two thirds of
         # the segments (for first-order convergence in 1/N that change is half the
         # default model's own discretisation error: a scale, not a correction)
-        y_coarse = _orders_of(runner, coarse_system(system), pts)
+        y_coarse = drive.orders_of(runner, coarse_system(system), every, err_coarse)
+        # a point whose run fails is left out of everything that follows and reported
+        left_out = {i: f"the model run with the parameter set as given failed ({err0[i]})" if i in err0 else
+                    f"the discretisation check (two thirds of the spring segments) failed ({err_coarse[i]})"
+                    for i in sorted({*err0, *err_coarse})}
+        problems += [drive.run_problem(every[i], f"{why}; the point is left out of the calibration, the effect fits and "
+                                       "the verdict") for i, why in left_out.items()]
+        keep = [i for i in range(len(every)) if i not in left_out]
+        pts = [every[i] for i in keep]
+        missing, message = shortfall(pts, len(campaign.ramps), [every[i].id for i in left_out])
+        if missing:
+            return _not_diagnosed(system, missing, message, problems, runner.count, t0)
+        y0, y_coarse, meas, spread = y0[keep], y_coarse[keep], meas[keep], spread[keep]
+        held = [i for i in range(len(pts)) if i % 3 == 1]
+        train = [i for i in range(len(pts)) if i % 3 != 1]
+        floor = math.sqrt(_rms(spread) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2)
+        ptr = [pts[i] for i in train]
         model_diff = np.abs(_resid(y_coarse, y0))
         floor = math.sqrt(floor ** 2 + _rms(model_diff) ** 2)
         # per-residual uncertainty [N m]: repeatability, gain tolerance and the model's
@@ -229,13 +296,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         sig = np.sqrt(spread ** 2 + (GAIN_TOLERANCE * meas) ** 2 + model_diff ** 2 + (SIGMA_MIN_SHARE * floor) ** 2)
         wtr = 1.0 / sig[train].ravel()
         r0 = _resid(y0, meas)
-        gap_before = _rms(r0[held])
         # 2) calibrate (Gauss-Newton on log scale factors, training points only), from
         # the best point of a coarse scan of each factor alone: near a resonance the
         # order amplitudes respond so non-linearly to a stiffness that Gauss-Newton from
         # the estimate can stall in a local minimum (a pure +15 % outer-stiffness error
         # ended at +6 % with four other factors drifting by 12-27 %, a weighted misfit
-        # 18x that of the true factors)
+        # 18x that of the true factors). A trial whose run fails costs infinity.
         x = np.zeros(len(CALIBRATION))
         y_tr = y0[train]
         best = (_cal_cost(_resid(y_tr, meas[train]).ravel() * wtr, x), x, y_tr)
@@ -244,7 +310,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             for step in CAL_SCAN:
                 xk = x.copy()
                 xk[k] = step
-                yk = _orders_of(runner, calibrated_system(system, xk), ptr)
+                yk = drive.orders_of(runner, calibrated_system(system, xk), ptr)
                 ck = _cal_cost(_resid(yk, meas[train]).ravel() * wtr, xk)
                 if ck < best[0]:
                     best = (ck, xk, yk)
@@ -257,8 +323,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             for k in range(len(x)):
                 xk = x.copy()
                 xk[k] += h
-                cols.append(((_orders_of(runner, calibrated_system(system, xk), ptr) - y_tr) / h).ravel())
-            jac_u = np.array(cols).T  # [N m per log factor]
+                cols.append(((drive.orders_of(runner, calibrated_system(system, xk), ptr) - y_tr) / h).ravel())
+            # a failed derivative run gives no direction (0), never a fit: every step is
+            # accepted only on real runs below
+            jac_u = np.nan_to_num(np.array(cols).T, nan=0.0, posinf=0.0, neginf=0.0)  # [N m per log factor]
             jac = jac_u * wtr[:, None]  # weighted, like the residuals the fits use
             r = (meas[train] - y_tr).ravel() * wtr
             dx = _lstsq_bounded(jac, r, x)
@@ -267,7 +335,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             cost = _cal_cost(_resid(y_tr, meas[train]).ravel() * wtr, x)
             for frac in CAL_STEP_FRACTIONS:
                 xn = x + frac * dx
-                yn = _orders_of(runner, calibrated_system(system, xn), ptr)
+                yn = drive.orders_of(runner, calibrated_system(system, xn), ptr)
                 if _cal_cost(_resid(yn, meas[train]).ravel() * wtr, xn) < cost:
                     x, y_tr = xn, yn
                     break
@@ -275,10 +343,21 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 break
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
-        y_cal_h = _orders_of(runner, cal, [pts[i] for i in held])
+        err_cal = {}
+        y_cal_h = drive.orders_of(runner, cal, [pts[i] for i in held], err_cal)
         y_cal = np.zeros_like(y0)
         y_cal[train] = y_tr
         y_cal[held] = y_cal_h
+        # a held-out point where the calibrated model fails cannot be judged: left out
+        dropped = {held[j] for j in err_cal}
+        problems += [drive.run_problem(pts[held[j]], f"the model run with the calibrated parameter set failed ({msg}); "
+                                       "the point is left out of the verdict") for j, msg in err_cal.items()]
+        held = [i for i in held if i not in dropped]
+        if not held:
+            return _not_diagnosed(system, ["held_out_points"], "not diagnosed: the calibrated model fails at every held-out"
+                                  " point (see problems). Accepted: at least one held-out torsional point (every third) "
+                                  "that the calibrated model can run.", problems, runner.count, t0)
+        gap_before = _rms(r0[held])
         r_cal = _resid(y_cal, meas)
         gap_cal = _rms(r_cal[held])
         # 4) name: signature screen (one run per candidate at its typical magnitude) with
@@ -287,7 +366,17 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # points, the calibrated model and the estimated (uncalibrated) one: a
         # calibration may have imitated the effect (a short-spring third stage comes back
         # as a 60 % stiffer inner set), and then the effect fits only from the estimate.
-        # Candidates are compared by the calibration's regularised objective.
+        # Candidates are compared by the calibration's regularised objective. A run that
+        # fails makes its trial infinitely costly and is recorded for the candidate.
+        failures = {n: {} for n in cands}  # effect -> {point id: message of a failed run}
+
+        def runs(s, points, name):
+            errs = {}
+            y = drive.orders_of(runner, s, points, errs)
+            for j, msg in errs.items():
+                failures[name].setdefault(points[j].id, msg)
+            return y, bool(errs)
+
         screen = {}
         r = (meas[train] - y_tr).ravel()
         jac_s = jac if jac is not None else np.zeros((r.size, len(x)))  # no calibration run
@@ -300,13 +389,17 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             e = info(name)
             pick = None  # the start where the effect fits with a positive scale at least cost
             for start, (s0, x0, y_s) in starts.items():
-                ye = _orders_of(runner, with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), ptr)
-                d = (ye - y_s).ravel()
-                rs = (meas[train] - y_s).ravel()
-                cost, scale, dxs = _joint_screen(jac_s, d * wtr, rs * wtr, x0)
-                cand = {"fit_rms": _rms(rs - jac_su @ dxs - d * scale), "signature_rms": _rms(d),
-                        "scale": scale, "cost": cost, "start": start}
-                if pick is None or (cand["scale"] > 0.05, -cost) > (pick["scale"] > 0.05, -pick["cost"]):
+                ye, failed = runs(with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), ptr, name)
+                if failed:
+                    cand = {"fit_rms": math.nan, "signature_rms": math.nan, "scale": 0.0, "cost": math.inf,
+                            "start": start}
+                else:
+                    d = (ye - y_s).ravel()
+                    rs = (meas[train] - y_s).ravel()
+                    cost, scale, dxs = _joint_screen(jac_s, d * wtr, rs * wtr, x0)
+                    cand = {"fit_rms": _rms(rs - jac_su @ dxs - d * scale), "signature_rms": _rms(d),
+                            "scale": scale, "cost": cost, "start": start}
+                if pick is None or (cand["scale"] > 0.05, -cand["cost"]) > (pick["scale"] > 0.05, -pick["cost"]):
                     pick = cand
             screen[name] = pick
         order = sorted(cands, key=lambda n: screen[n]["cost"])
@@ -316,8 +409,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
 
         def fit_from(name, start):
             """Fit effect ``name``'s magnitude from one starting point: (training cost of
-            the calibration's objective from real runs, training fit [N m], magnitude,
-            total log factors)."""
+            the calibration's objective from real runs, infinite when every run failed;
+            training fit [N m], magnitude, total log factors)."""
             e = info(name)
             s0, x0, _ = starts[start]
             tried = {}
@@ -326,7 +419,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 """(regularised cost, training fit [N m], m, total log factors) with
                 magnitude m and a linearised re-calibration under the prior."""
                 if m not in tried:
-                    ym = _orders_of(runner, with_effect(s0, name, {e.magnitude: float(m)}), ptr)
+                    ym, failed = runs(with_effect(s0, name, {e.magnitude: float(m)}), ptr, name)
+                    if failed:
+                        tried[m] = (math.inf, math.nan, float(m), x0)
+                        return tried[m]
                     r = (meas[train] - ym).ravel()
                     dxc = _lstsq_bounded(jac_s, r * wtr, x0)  # zero Jacobian, x0 = 0: dxc = 0
                     rr = r - jac_su @ dxc
@@ -339,18 +435,18 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             # in log magnitude): effects respond non-linearly to their magnitude, and the
             # recovered value should be good to a few per cent, not to the grid spacing
             lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
-            minimize_scalar(lambda u: fit_at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
-                            options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})
+            with np.errstate(invalid="ignore", over="ignore"):  # failed trials cost inf
+                minimize_scalar(lambda u: fit_at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
+                                options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})
             _, _, m, x_fit = min(tried.values(), key=lambda t: t[0])
             # verify the linearised re-calibration with real runs against the calibrated
             # and the estimated factors, judged by the calibration's objective (weighted
             # misfit + prior on the total factors)
             options = [x_fit, x, np.zeros_like(x)]
-            runs = [_orders_of(runner, with_effect(calibrated_system(system, xo), name, {e.magnitude: m}), ptr)
-                    for xo in options]
-            costs = [_cal_cost(_resid(y, meas[train]).ravel() * wtr, xo) for y, xo in zip(runs, options)]
+            ys = [runs(with_effect(calibrated_system(system, xo), name, {e.magnitude: m}), ptr, name)[0] for xo in options]
+            costs = [_cal_cost(_resid(y, meas[train]).ravel() * wtr, xo) for y, xo in zip(ys, options)]
             k = int(np.argmin(costs))
-            return costs[k], _rms(_resid(runs[k], meas[train])), m, options[k]
+            return costs[k], _rms(_resid(ys[k], meas[train])), m, options[k]
 
         for j, name in enumerate(shortlisted):
             report(0.62 + 0.3 * j / len(shortlisted), f"name: fitting {name}")
@@ -364,28 +460,35 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 tried_starts += [st for st in starts if st not in tried_starts]
             fits = {st: fit_from(name, st) for st in tried_starts}
             start = min(fits, key=lambda st: fits[st][0])
-            _, fit, m, x_eff = fits[start]
-            sys_e = with_effect(calibrated_system(system, x_eff), name, {e.magnitude: m})
-            yh = _orders_of(runner, sys_e, [pts[i] for i in held])
-            gap_e = _rms(_resid(yh, meas[held]))
-            ranking.append({
-                "effect": name,
-                "parameters": {e.magnitude: m},
-                "gap_held_out_nm": gap_e,
-                "score": gap_e * (1.0 + COMPLEXITY_PENALTY * 1),
-                "improvement": 1.0 - gap_e / gap_cal if gap_cal > 0 else 0.0,
-                "train_fit_nm": fit,
-                "screen_fit_nm": screen[name]["fit_rms"],
-                "screen_cost": screen[name]["cost"],
-                "fitted_from": start,
-                "_x": np.asarray(x_eff).tolist(),
-                "_yh": yh,
-            })
-        for name in order:
-            if name not in shortlisted:
-                ranking.append({"effect": name, "parameters": {}, "gap_held_out_nm": None, "score": None,
-                                "improvement": None, "train_fit_nm": None, "screen_fit_nm": screen[name]["fit_rms"],
-                                "screen_cost": screen[name]["cost"], "fitted_from": screen[name]["start"]})
+            cost, fit, m, x_eff = fits[start]
+            entry = {"effect": name, "parameters": {e.magnitude: m}, "gap_held_out_nm": None, "score": None,
+                     "improvement": None, "train_fit_nm": fit, "screen_fit_nm": screen[name]["fit_rms"],
+                     "screen_cost": screen[name]["cost"], "fitted_from": start, "excluded": None}
+            if not math.isfinite(cost):
+                entry["parameters"] = {}
+                entry["excluded"] = (f"not ranked: the model runs with {name} failed at every magnitude tried "
+                                     f"({drive.failed_text(failures[name])})")
+            else:
+                sys_e = with_effect(calibrated_system(system, x_eff), name, {e.magnitude: m})
+                yh, failed = runs(sys_e, [pts[i] for i in held], name)
+                if failed:
+                    bad = {pid: failures[name][pid] for pid in (pts[i].id for i in held) if pid in failures[name]}
+                    entry["excluded"] = (f"not ranked: with {name} fitted ({e.magnitude} = {m:.4g}) the model run failed "
+                                         f"at held-out point(s) {drive.failed_text(bad)}; a failed run is no match")
+                else:
+                    gap_e = _rms(_resid(yh, meas[held]))
+                    entry.update({"gap_held_out_nm": gap_e, "score": gap_e * (1.0 + COMPLEXITY_PENALTY * 1),
+                                  "improvement": 1.0 - gap_e / gap_cal if gap_cal > 0 else 0.0,
+                                  "_x": np.asarray(x_eff).tolist(), "_yh": yh})
+            ranking.append(entry)
+        for name in (n for n in order if n not in shortlisted):
+            ranking.append({"effect": name, "parameters": {}, "gap_held_out_nm": None, "score": None,
+                            "improvement": None, "train_fit_nm": None, "screen_fit_nm": screen[name]["fit_rms"],
+                            "screen_cost": screen[name]["cost"], "fitted_from": screen[name]["start"],
+                            "excluded": None if math.isfinite(screen[name]["cost"]) else
+                            f"not ranked: the screening runs with {name} failed ({drive.failed_text(failures[name])})"})
+        for entry in ranking:
+            entry["failed_points"] = sorted(failures[entry["effect"]])
         ranking.sort(key=lambda r: (r["score"] is None, r["score"] if r["score"] is not None else r["screen_cost"]))
         # verdict
         top = ranking[0]
@@ -414,45 +517,50 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         ramps, traces = {}, {}
         if campaign.ramps:
             report(0.93, "show: hysteresis ramps")
-            for stage, s in (("before", system), ("calibrated", cal), ("after", final)):
-                outs = runner.map([(drive.diagnosis_system(s), p) for p in campaign.ramps])
-                ramps[stage] = {}
-                for p, o in zip(campaign.ramps, outs):
-                    if "windup" in o:
-                        ramps[stage][p.id] = drive.windup_error_deg(o["windup"], p)
-                        traces.setdefault(p.id, {})[stage] = o["windup"]
+            ramps, traces, failed = drive.ramp_errors(runner, {"before": system, "calibrated": cal, "after": final},
+                                                      campaign.ramps)
+            problems += failed
         sims = runner.count
     for r in ranking:
         r.pop("_x", None)
         r.pop("_yh", None)
     res = {"before": r0, "calibrated": r_cal, "after": _resid(y_aug, meas)}
+    shown = [i for i in range(len(pts)) if i not in dropped]
     ids = [p.id for p in pts]
     diag = Diagnosis(
-        verdict=verdict,
-        effect=effect,
-        effect_parameters=eff_params,
-        ranking=ranking,
-        noise_floor_nm=floor,
-        gap_before_nm=gap_before,
-        gap_calibrated_nm=gap_cal,
-        gap_after_nm=gap_after,
+        verdict=verdict, effect=effect, effect_parameters=eff_params, ranking=ranking, noise_floor_nm=floor,
+        gap_before_nm=gap_before, gap_calibrated_nm=gap_cal, gap_after_nm=gap_after,
         held_out_points=[ids[i] for i in held],
         calibration={k: math.exp(v) for k, v in zip(CALIBRATION, x)},
-        points=[{"id": p.id, "speed_rpm": p.speed_rpm, "mean_torque_nm": p.mean_torque_nm, "held_out": i in held,
-                 "measured": meas[i].tolist(), "before": y0[i].tolist(), "calibrated": y_cal[i].tolist(),
-                 "after": y_aug[i].tolist()} for i, p in enumerate(pts)],
-        residuals={k: {ids[i]: v[i].tolist() for i in range(len(ids))} for k, v in res.items()},
-        ramps=ramps,
-        ramp_traces=traces,
-        problems=[{"file": q.file, "field": q.field, "point": q.point, "message": q.message} for q in campaign.problems],
-        simulations=sims,
-        system=final,
+        points=[{"id": pts[i].id, "speed_rpm": pts[i].speed_rpm, "mean_torque_nm": pts[i].mean_torque_nm,
+                 "held_out": i in held, "measured": meas[i].tolist(), "before": y0[i].tolist(),
+                 "calibrated": y_cal[i].tolist(), "after": y_aug[i].tolist()} for i in shown],
+        residuals={k: {ids[i]: v[i].tolist() for i in shown} for k, v in res.items()},
+        ramps=ramps, ramp_traces=traces, problems=problems, simulations=sims, system=final,
     )
+    diag.message = _verdict_message(diag, [every[i].id for i in left_out] + [pts[i].id for i in sorted(dropped)])
     diag.locate = locate(diag, system)
     diag.locate["screen_baseline_fit_nm"] = base_fit
     diag.wall_time_s = time.perf_counter() - t0
     report(1.0, "done")
     return diag
+
+
+def _verdict_message(diag: Diagnosis, left_out: list) -> str:
+    """The verdict of a diagnosed campaign in one sentence, with the points left out and the
+    candidates not ranked because their model runs failed."""
+    g, floor = f"{diag.gap_calibrated_nm:.3g} N m", f"{diag.noise_floor_nm:.3g} N m"
+    text = {"missing_effect": f"{diag.effect} cuts the held-out gap from {g} (calibrated) to {diag.gap_after_nm:.3g} N m "
+                              f"(noise floor {floor})",
+            "no_missing_effect": f"after calibration the held-out gap is {g}, within {FLOOR_FACTOR_NONE:g}x the noise "
+                                 f"floor of {floor}"}.get(diag.verdict, f"after calibration the held-out gap is {g}, above "
+                                                          f"{FLOOR_FACTOR_NONE:g}x the noise floor of {floor}, and no "
+                                                          "candidate closes it")
+    excluded = [r["effect"] for r in diag.ranking if r.get("excluded")]
+    return (text + (f"; {len(left_out)} point(s) left out because a model run failed there: {', '.join(left_out)} "
+                    "(see problems)" if left_out else "")
+            + (f"; not ranked because their model runs failed: {', '.join(excluded)} (see ranking)" if excluded else "")
+            + ".")
 
 
 def locate(diag: Diagnosis, system) -> dict:
@@ -488,6 +596,5 @@ def locate(diag: Diagnosis, system) -> dict:
     return out
 
 
-__all__ = ["CALIBRATION", "Diagnosis", "diagnose", "locate", "calibrated_system"]
-
-_ = EFFECTS
+__all__ = ["CALIBRATION", "INSUFFICIENT", "Diagnosis", "diagnose", "locate", "calibrated_system", "shortfall",
+           "speeds_of"]

@@ -1,7 +1,9 @@
 """Drive a parameter set with measured test points (the compare step's simulations).
 
 Task functions are module level and take plain picklable arguments so they run in the
-sweeps' process pool (:func:`dampersim.sweeps.backends.process_pool`).
+sweeps' process pool (:func:`dampersim.sweeps.backends.process_pool`). A run that fails (an
+exception, a diverged integration, a non-finite result) comes back as {"error": text}, and
+the diagnosis reads it as a failure, never as numbers.
 """
 
 from __future__ import annotations
@@ -103,12 +105,18 @@ def simulate_point(system, point) -> dict:
     return {"windup": wind}
 
 
-def _task(args):
+def run_task(args) -> dict:
+    """:func:`simulate_point` of ``args`` = (system, point), or {"error": text} when the run
+    raised or gave a non-finite result (a diverged run must not read as numbers)."""
     system, point = args
     try:
-        return simulate_point(system, point)
+        out = simulate_point(system, point)
     except Exception as exc:  # noqa: BLE001 - a failed point is reported, not fatal
         return {"error": f"{type(exc).__name__}: {exc}"}
+    bad = [k for k, v in out.items() if not np.all(np.isfinite(np.asarray(v, dtype=float)))]
+    if bad:
+        return {"error": f"non-finite {', '.join(bad)}: the run diverged"}
+    return out
 
 
 class Runner:
@@ -138,8 +146,53 @@ class Runner:
         tasks = list(tasks)
         self.count += len(tasks)
         if self._pool is None:
-            return [_task(t) for t in tasks]
-        return list(self._pool.map(_task, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
+            return [run_task(t) for t in tasks]
+        return list(self._pool.map(run_task, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
+
+
+def orders_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
+    """Output order amplitudes [N m] of ``system`` (at :func:`diagnosis_system`'s step)
+    driven by each torsional point, one row each. A failed run gives a row of NaN, never
+    numbers; its message goes into ``errors[row]`` when a dict is given."""
+    sysd = diagnosis_system(system)
+    out = runner.map([(sysd, p) for p in points])
+    rows = np.full((len(out), len(ORDERS)), np.nan)
+    for i, r in enumerate(out):
+        if "orders" in r:
+            rows[i] = r["orders"]
+        elif errors is not None:
+            errors[i] = r.get("error", "no result")
+    return rows
+
+
+def run_problem(point, why: str) -> dict:
+    """A campaign ``problems`` entry (file, field "model", point id, message) for a point
+    whose model run failed."""
+    return {"file": point.file, "field": "model", "point": point.id, "message": why}
+
+
+def failed_text(failed: dict) -> str:
+    """'p3, p7 (first message)' for {point id: message} of failed runs."""
+    if not failed:
+        return "no run completed"
+    return f"{', '.join(sorted(failed))} ({next(iter(failed.values()))})"
+
+
+def ramp_errors(runner, stages: dict, points) -> tuple:
+    """Windup error [deg] of each ramp point under each parameter set of ``stages``
+    ({stage: system}): ({stage: {point id: deg}}, {point id: {stage: windup [rad]}}, the
+    ``problems`` entries of the runs that failed)."""
+    errors, traces, problems = {}, {}, []
+    for stage, s in stages.items():
+        errors[stage] = {}
+        for p, o in zip(points, runner.map([(diagnosis_system(s), p) for p in points])):
+            if "windup" in o:
+                errors[stage][p.id] = windup_error_deg(o["windup"], p)
+                traces.setdefault(p.id, {})[stage] = o["windup"]
+            else:
+                problems.append(run_problem(p, f"the ramp's model run ({stage} parameter set) failed "
+                                            f"({o.get('error', 'no result')}); no windup error for it"))
+    return errors, traces, problems
 
 
 def windup_error_deg(sim_windup, point) -> float:
@@ -152,4 +205,5 @@ def windup_error_deg(sim_windup, point) -> float:
 
 
 __all__ = ["ORDERS", "RecordedRamp", "diagnosis_system", "measured_orders", "split_half_spread", "simulate_point",
-           "Runner", "windup_error_deg"]
+           "run_task", "Runner", "orders_of", "run_problem", "failed_text", "ramp_errors",
+           "windup_error_deg"]
