@@ -7,9 +7,10 @@ bytes [B], both from the parameter set alone (no layout, no array is built):
 
 * DOF (:func:`degrees_of_freedom`), as :func:`dampersim.solver.layout.build_layout` lays
   them out: the three damper inertias, ``segments - 1`` masses per integrated spring
-  (outer spring; nested pair outer; nested pair inner when the set has one), one DOF per
-  rig element, plus the clutch drive side and the pendulum absorber when those effects
-  are on. The segment record holds ``segments + 1`` nodes per spring.
+  (outer spring; nested pair outer; nested pair inner when the set has one; the short
+  pair's two springs with effect inner_short_springs), one DOF per rig element, plus
+  the clutch drive side and the pendulum absorber when those effects are on. The
+  segment record holds ``segments + 1`` nodes per spring.
 * bytes of one run (:func:`point_cost`), as :func:`dampersim.simulation.simulate`
   allocates them: the input torque on the step grid (8 B per step, the largest array when
   the step is small), the integrator's record (``NREC`` channels at the output sample
@@ -141,6 +142,7 @@ def degrees_of_freedom(system) -> int:
     no, ni = int(s.solver.outer_segments), int(s.solver.inner_segments)
     nested = s.inner.nested is not None
     dof = 3 + (no - 1) + (ni - 1) + ((ni - 1) if nested else 0) + len(s.rig.elements)
+    dof += 2 * (ni - 1) * int(s.short_pairs > 0)  # the short pair (effect inner_short_springs)
     dof += int(bool(s.effects.clutch_slip.enabled)) + int(bool(s.effects.pendulum_absorber.enabled))
     return dof
 
@@ -149,7 +151,8 @@ def segment_nodes(system) -> int:
     """Nodes of the segment record [-]: ``segments + 1`` per integrated spring; equal to
     ``build_layout(system, speed).n_nodes``."""
     no, ni = int(system.solver.outer_segments), int(system.solver.inner_segments)
-    return (no + 1) + (ni + 1) + ((ni + 1) if system.inner.nested is not None else 0)
+    short = 2 * (ni + 1) if system.short_pairs > 0 else 0  # the short pair (effect inner_short_springs)
+    return (no + 1) + (ni + 1) + ((ni + 1) if system.inner.nested is not None else 0) + short
 
 
 def _steps(duration: float, dt: float) -> float:

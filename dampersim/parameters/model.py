@@ -187,12 +187,39 @@ class OutputBacklash:
 
 @dataclass(frozen=True)
 class InnerShortSprings:
-    """Shorter inner-of-pair springs in some nested pairs: a third stiffness stage."""
+    """Shorter inner-of-pair springs in some nested pairs: a second pair design and a
+    third stiffness stage ([thesis] §5.1, the smaller damper; docs/model.md §4, §11).
+
+    ``count`` of the inner set's pairs hold a short inner spring; the other pairs are the
+    normal full-length pairs. Each kind is integrated as one representative pair with its
+    own masses and friction contacts. The short pair's outer spring is the set's outer
+    spring; its inner spring has the normal inner spring's radii and wire, the rate, mass
+    and coil count given here, and the free arc ``inner.slot_arc - clearance``.
+    """
 
     enabled: bool = param("-", "some inner-of-pair springs are shorter than the slot", default=False, kind=bool)
-    count: int = param("-", "number of pairs with a short inner spring", 1, 12, default=2, kind=int)
-    stiffness: float = param("N m/rad", "rate of one short spring about the damper axis", 0.0, 1.0e5, default=240.0)
-    clearance: float = param("rad", "inner-set windup at which a short spring starts to carry torque", 0.0, 1.0, default=0.1)
+    count: int = param("-", "number of pairs with a short inner spring (fewer than inner.count; 0: none)", 0, 11,
+                       default=2, kind=int)
+    stiffness: float = param("N m/rad", "rate of one short inner spring about the damper axis", 0.0, 1.0e5,
+                             lo_open=True, default=240.0)
+    clearance: float = param("rad", "slot arc at zero windup minus the short spring's free arc: the inner-set "
+                             "windup at which it starts to carry torque (equal stopper widths)", 0.0, 1.0, default=0.1)
+    mass: float = param("kg", "mass of one short inner spring", 0.0, 10.0, lo_open=True, default=0.032)
+    active_coils: float = param("-", "active coils of one short inner spring (block arc, redirection force)", 1.0,
+                                1000.0, default=10.0)
+
+    def spring(self, inner: SpringSet) -> ArcSpring:
+        """The short inner spring of a pair of ``inner``: the nested spring's radii and
+        wire, this table's rate, mass and coils, free arc = slot arc - clearance [rad]."""
+        return ArcSpring(
+            stiffness=self.stiffness,
+            mass=self.mass,
+            arc=inner.slot_arc - self.clearance,
+            effective_radius=inner.nested.effective_radius,
+            friction_radius=inner.nested.friction_radius,
+            active_coils=self.active_coils,
+            wire_thickness=inner.nested.wire_thickness,
+        )
 
 
 @dataclass(frozen=True)
@@ -266,3 +293,10 @@ class DamperSystem:
     motor: OutputMotor = field(default_factory=OutputMotor, metadata={"doc": "output motor control"})
     solver: Solver = field(default_factory=Solver, metadata={"doc": "numerical settings"})
     effects: Effects = field(default_factory=Effects, metadata={"doc": "optional effects (all off by default)"})
+
+    @property
+    def short_pairs(self) -> int:
+        """Nested pairs with a short inner spring [-] (effect inner_short_springs; 0 when it
+        is off or the inner set has no nested spring)."""
+        ss = self.effects.inner_short_springs
+        return ss.count if ss.enabled and self.inner.nested is not None else 0

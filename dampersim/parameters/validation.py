@@ -35,11 +35,14 @@ def check_rig_size(n_elements: int, field: str = "rig.elements") -> None:
 
 def degrees_of_freedom(system: m.DamperSystem) -> int:
     """Degrees of freedom of the model of ``system``: the three damper bodies, the inner
-    nodes of each discretised spring (outer, pair outer and, when nested, pair inner), the
-    rig elements and one per enabled clutch-slip or pendulum-absorber effect (as the solver
-    lays them out)."""
+    nodes of each discretised spring (outer, pair outer and, when nested, pair inner; the
+    short pair's two springs when effect inner_short_springs adds them), the rig elements
+    and one per enabled clutch-slip or pendulum-absorber effect (as the solver lays them
+    out)."""
     sv, eff = system.solver, system.effects
     springs = (sv.outer_segments - 1) + (sv.inner_segments - 1) * (2 if system.inner.nested is not None else 1)
+    if system.short_pairs > 0:
+        springs += 2 * (sv.inner_segments - 1)
     extra = int(bool(eff.clutch_slip.enabled)) + int(bool(eff.pendulum_absorber.enabled))
     return 3 + springs + len(system.rig.elements) + extra
 
@@ -132,6 +135,29 @@ def _check_set(s: m.SpringSet, name: str):
         raise ParameterError(f"{name}.hardstop_negative", s.hardstop_negative, f"a windup above -{s.slot_arc:.4f} rad")
 
 
+def _check_short_springs(system: m.DamperSystem) -> None:
+    """Effect inner_short_springs: a second pair design inside the inner set's slots
+    (docs/model.md §4). The normal pairs must remain (all pairs short is the base set with
+    a shorter ``inner.nested.arc``), the short spring must fit the slot with its
+    clearance and stay longer than its block arc."""
+    ss = system.effects.inner_short_springs
+    if not ss.enabled or ss.count == 0:
+        return
+    inner = system.inner
+    if inner.nested is None:
+        raise ParameterError("effects.inner_short_springs.enabled", True, "false, or an inner set with nested "
+                             "springs (inner.nested): the short springs are inner springs of nested pairs")
+    if ss.count >= inner.count:
+        raise ParameterError("effects.inner_short_springs.count", ss.count,
+                             f"fewer than the {inner.count} pairs of the inner set (all pairs short: shorten "
+                             "inner.nested.arc instead)")
+    block = ss.active_coils * inner.nested.wire_thickness / inner.nested.effective_radius
+    if inner.slot_arc - ss.clearance <= block:
+        raise ParameterError("effects.inner_short_springs.clearance", ss.clearance,
+                             f"a clearance below the slot arc {inner.slot_arc:.4f} rad minus the short spring's "
+                             f"block arc {block:.4f} rad")
+
+
 def validate(system: m.DamperSystem) -> m.DamperSystem:
     """Raise ParameterError on the first invalid value; return ``system`` unchanged if valid.
 
@@ -157,6 +183,7 @@ def validate(system: m.DamperSystem) -> m.DamperSystem:
                              f"at most {MAX_DEGREES_OF_FREEDOM} (bodies, spring segments and rig elements)")
     _check_set(system.outer, "outer")
     _check_set(system.inner, "inner")
+    _check_short_springs(system)
     total = system.friction.alpha_sec + system.friction.alpha_ter
     if abs(total - 1.0) > 1e-9:
         raise ParameterError("friction.alpha_ter", system.friction.alpha_ter, f"1 - alpha_sec = {1 - system.friction.alpha_sec:g}")

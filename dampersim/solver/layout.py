@@ -8,7 +8,8 @@ index                 body
 ====================  =========================================================
 0, 1, 2               J_pri, J_sec, J_ter
 3 ...                 segment masses of each integrated spring, in spring order
-                      (outer spring; nested pair outer; nested pair inner)
+                      (outer spring; nested pair outer; nested pair inner; with
+                      effect inner_short_springs the short pair's outer and inner)
 then                  rig elements in power-flow order; the last is the motor
 then (optional)       clutch drive side (effect clutch_slip), pendulum
                       absorber (effect pendulum_absorber)
@@ -17,6 +18,9 @@ then (optional)       clutch drive side (effect clutch_slip), pendulum
 Each integrated spring stands for ``count`` identical springs: its masses carry
 ``count`` times one spring's inertia and all its forces are ``count`` times one
 spring's, so the bodies receive the whole set's torque and momentum is conserved.
+With effect inner_short_springs the inner set has two pair designs, each integrated as
+one representative pair (docs/model.md §4): the normal pairs (count nS - n_short) and
+the pairs with a short inner spring (count n_short).
 
 Spring coordinates ([thesis] Eq. 16-18, docs/model.md §3): for a set between body A
 (before) and body B (after), a node's slot coordinate is ``x = q_A - q_node`` [rad],
@@ -64,8 +68,7 @@ P_CL_CAP = 25  # clutch capacity [N m]
 P_CL_WS = 26  # clutch slip speed of the friction build-up [rad/s]
 P_CL_VISC = 27  # clutch oil-film drag [N m s/rad]
 P_BL_HALF = 28  # half the free play of the first rig shaft [rad]
-P_SS_K = 29  # third-stage stiffness on the inner windup (all short springs) [N m/rad]
-P_SS_GAP = 30  # inner windup at which it engages [rad]
+# 29, 30: unused (held the massless third inner stage that the short nested pair replaced)
 P_TD_C = 31  # turbine drag against the housing [N m s/rad]
 P_PA_DOF = 32  # DOF index of the pendulum absorber (-1: none)
 P_PA_K = 33  # pendulum restoring stiffness J_a (n Omega0)^2 [N m/rad]
@@ -171,9 +174,8 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
     SF, SI, springs, contacts_idx, contacts_f = [], [], [], [], []
     n_nodes = 0
 
-    def add_spring(name, set_name, a_body, spring_set, spring, n_seg):
+    def add_spring(name, set_name, a_body, spring_set, spring, n_seg, count):
         nonlocal n_nodes
-        count = spring_set.count
         first = len(J)
         row = np.zeros(NF)
         row[F_KSEG] = n_seg * spring.stiffness
@@ -199,13 +201,24 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
     no, ni = s.solver.outer_segments, s.solver.inner_segments
     # effect spring_preload adds its radial preload to every spring mass
     extra = s.effects.spring_preload.force if s.effects.spring_preload.enabled else 0.0
-    i_o, first_o = add_spring("outer", "outer", PRI, s.outer, s.outer.spring, no)
+    i_o, first_o = add_spring("outer", "outer", PRI, s.outer, s.outer.spring, no, s.outer.count)
     SF[i_o][F_PRELOAD] = fr.outer.preload + extra
-    i_po, first_po = add_spring("pair_outer", "inner", SEC, s.inner, s.inner.spring, ni)
-    SF[i_po][F_PRELOAD] = fr.pair_outer.preload + extra
-    if s.inner.nested is not None:
-        i_pi, first_pi = add_spring("pair_inner", "inner", SEC, s.inner, s.inner.nested, ni)
-        SF[i_pi][F_PRELOAD] = fr.pair_inner.preload + extra
+    # effect inner_short_springs: n_short of the pairs hold a shorter inner spring
+    # (docs/model.md §4); both pair designs get a representative pair of their own
+    n_short = s.short_pairs
+    pair_designs = [("pair", s.inner.spring, s.inner.nested, s.inner.count - n_short)]
+    if n_short > 0:
+        short = s.effects.inner_short_springs.spring(s.inner)
+        pair_designs.append(("short_pair", s.inner.spring, short, n_short))
+    pair_firsts = []  # (outer first mass, inner first mass or -1, inner spring or None)
+    for prefix, outer_sp, inner_sp, count in pair_designs:
+        i_po, first_po = add_spring(f"{prefix}_outer", "inner", SEC, s.inner, outer_sp, ni, count)
+        SF[i_po][F_PRELOAD] = fr.pair_outer.preload + extra
+        first_pi = -1
+        if inner_sp is not None:
+            i_pi, first_pi = add_spring(f"{prefix}_inner", "inner", SEC, s.inner, inner_sp, ni, count)
+            SF[i_pi][F_PRELOAD] = fr.pair_inner.preload + extra
+        pair_firsts.append((first_po, first_pi, inner_sp))
 
     singles = []  # [mass, contact]: a spring mass rubbing on one body
     pairs = []  # [outer mass, inner mass or -1, contact on J_sec, on J_ter, inner on outer]
@@ -227,17 +240,19 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
         # compute each part's friction with its own slip speed and weight it by alpha_sec /
         # alpha_ter (the thesis weights one friction torque computed against J_sec).
         # The inner spring of the pair rubs on the outer spring's mass of the same index
-        # (Eq. 25-26); the two masses are solved together.
+        # (Eq. 25-26); the two masses are solved together. The short pair's contacts are
+        # the normal pair's: same law, tuning factors and radii (docs/model.md §4).
         r_po = s.inner.spring.friction_radius
-        for i in range(ni - 1):
-            c_sec = add_contact(first_po + i, SEC, fr.pair_outer.alpha * fr.alpha_sec, r_po)
-            c_ter = add_contact(first_po + i, TER, fr.pair_outer.alpha * fr.alpha_ter, r_po)
-            c_in, m2 = -1, -1
-            if s.inner.nested is not None:
-                m2 = first_pi + i
-                c_in = add_contact(m2, first_po + i, fr.pair_inner.alpha, s.inner.nested.friction_radius)
-            if max(c_sec, c_ter, c_in) >= 0:
-                pairs.append((first_po + i, m2, c_sec, c_ter, c_in))
+        for first_po, first_pi, inner_sp in pair_firsts:
+            for i in range(ni - 1):
+                c_sec = add_contact(first_po + i, SEC, fr.pair_outer.alpha * fr.alpha_sec, r_po)
+                c_ter = add_contact(first_po + i, TER, fr.pair_outer.alpha * fr.alpha_ter, r_po)
+                c_in, m2 = -1, -1
+                if inner_sp is not None:
+                    m2 = first_pi + i
+                    c_in = add_contact(m2, first_po + i, fr.pair_inner.alpha, inner_sp.friction_radius)
+                if max(c_sec, c_ter, c_in) >= 0:
+                    pairs.append((first_po + i, m2, c_sec, c_ter, c_in))
 
     rig_names = []
     rig = []
@@ -321,9 +336,6 @@ def _effect_slots(s: DamperSystem, omega0: float, P: np.ndarray) -> None:
         P[P_CL_VISC] = eff.clutch_slip.viscous
     if eff.output_backlash.enabled:
         P[P_BL_HALF] = 0.5 * eff.output_backlash.free_play
-    if eff.inner_short_springs.enabled:
-        P[P_SS_K] = eff.inner_short_springs.count * eff.inner_short_springs.stiffness
-        P[P_SS_GAP] = eff.inner_short_springs.clearance
     if eff.turbine_drag.enabled:
         P[P_TD_C] = eff.turbine_drag.coefficient
     if eff.pendulum_absorber.enabled:

@@ -4,7 +4,9 @@ The springs are taken in the positive-torque contact configuration of [thesis] E
 (node 1 of each spring on the stopper of the body after the set, node N+1 on the body
 before it), which is the configuration any positive mean torque produces. The matrices
 are assembled from the spring segments and rig shafts directly (not by differencing the
-kernel), so they are an independent check of the kernel.
+kernel), so they are an independent check of the kernel. The short inner spring of
+effect inner_short_springs has a clearance in that state and carries no torque: only its
+inner segments are assembled.
 """
 
 from __future__ import annotations
@@ -74,7 +76,12 @@ class LinearModel:
         }
 
 
-def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: float = 100.0):
+def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: float = 100.0,
+              short_engaged: bool = False):
+    """Layout, M, C, K. The short inner spring of effect inner_short_springs has a
+    clearance at zero windup (docs/model.md §4): its end segments are left out, so its
+    chain of masses floats (a zero-frequency mode), unless ``short_engaged`` (the
+    stability bound takes every spring engaged, like the hardstops)."""
     import dataclasses
 
     if system.effects.clutch_slip.enabled:  # linearised with the lock-up clutch closed
@@ -90,6 +97,7 @@ def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: flo
         nseg = int(lay.SI[s, I_N])
         off = int(lay.SI[s, I_OFF])
         kk = lay.SF[s, F_COUNT] * lay.SF[s, F_KSEG]
+        free_ends = lay.springs[s].name == "short_pair_inner" and not short_engaged
         # gradient of node slot coordinate x: mass x = q_A - q_m; node 0 x = q_A - q_B + c;
         # node N x = constant (on A's stopper)
         def grad(node):
@@ -103,6 +111,8 @@ def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: flo
             return g
 
         for j in range(nseg):
+            if free_ends and j in (0, nseg - 1):
+                continue
             g = grad(j + 1) - grad(j)
             K += kk * np.outer(g, g)
     rig0 = int(lay.P[P_RIG0])
@@ -115,8 +125,7 @@ def _assemble(system: DamperSystem, hardstop_stiffness: float = 0.0, omega0: flo
             mat[p, d] -= val
             mat[d, p] -= val
         C[d, d] += lay.rig[e, 2]
-    # effects: pendulum absorber (tuned at omega0), turbine drag; the third inner stage
-    # engages only beyond its clearance and is left out like the hardstops
+    # effects: pendulum absorber (tuned at omega0), turbine drag
     pa = int(lay.P[P_PA_DOF])
     pairs = [(1, pa, lay.P[P_PA_K], lay.P[P_PA_C])] if pa >= 0 else []
     pairs.append((0, 1, 0.0, lay.P[P_TD_C]))
@@ -171,7 +180,8 @@ def max_stable_time_step(system: DamperSystem) -> float:
     and require explicit viscous terms to stay well damped (c/J * dt <= 1). The hardstop
     contact damping is integrated implicitly and sets no bound.
     """
-    lay, M, C, K = _assemble(system, system.hardstops.stiffness if system.hardstops.enabled else 0.0)
+    lay, M, C, K = _assemble(system, system.hardstops.stiffness if system.hardstops.enabled else 0.0,
+                             short_engaged=True)
     jinv = 1.0 / np.diag(M)
     lam = np.linalg.eigvals(K * np.sqrt(jinv)[:, None] * np.sqrt(jinv)[None, :])
     wmax = float(np.sqrt(np.max(np.abs(lam.real))))

@@ -26,6 +26,15 @@ VARIANTS = {
     "clutch slip, held motor": {"effects.clutch_slip.enabled": True, "motor.mode": "held"},
     "output backlash": {"effects.output_backlash.enabled": True, "effects.output_backlash.free_play": 0.03},
     "inner short springs": {"effects.inner_short_springs.enabled": True, "effects.inner_short_springs.clearance": 0.02},
+    # the second pair design with other counts, segments, unequal stoppers and the
+    # radial transfer on both pairs
+    "inner short springs, 3 of 5": {
+        "effects.inner_short_springs.enabled": True, "effects.inner_short_springs.count": 3,
+        "effects.inner_short_springs.clearance": 0.06, "effects.inner_short_springs.stiffness": 410.0,
+        "effects.inner_short_springs.mass": 0.02, "effects.inner_short_springs.active_coils": 7.0,
+        "solver.inner_segments": 5, "inner.secondary_stopper_half_width": 0.12,
+        "effects.nested_radial_transfer.enabled": True, "friction.pair_inner.preload": 3.0,
+    },
     "turbine drag": {"effects.turbine_drag.enabled": True, "effects.turbine_drag.coefficient": 5.0},
     "pendulum absorber": {"effects.pendulum_absorber.enabled": True, "effects.pendulum_absorber.order": 2.5},
     "nested radial transfer": {"effects.nested_radial_transfer.enabled": True},

@@ -5,14 +5,22 @@ numba, no flattened tables. The kernel's right-hand side must agree with it.
 
 State convention (the documented DOF order of :mod:`dampersim.solver.layout`):
 J_pri, J_sec, J_ter; the N_o-1 outer-spring masses; the N_i-1 masses of the nested
-pair's outer spring; the N_i-1 masses of its inner spring; the rig elements (motor
-last); then, when enabled, the clutch drive side (effect clutch_slip) and the
-pendulum absorber (effect pendulum_absorber). Angles are taken in a frame turning at Omega0, speeds relative to Omega0.
+pair's outer spring; the N_i-1 masses of its inner spring; with effect
+inner_short_springs the same two groups again for the pair with a short inner spring;
+the rig elements (motor last); then, when enabled, the clutch drive side (effect
+clutch_slip) and the pendulum absorber (effect pendulum_absorber). Angles are taken in a
+frame turning at Omega0, speeds relative to Omega0.
+
+Short inner springs (docs/model.md §4): ``count`` of the nS pairs hold an
+inner spring shorter than the slot by the clearance. Each pair design is one
+representative pair standing for its own number of pairs (nS - count and count), with
+its own masses and friction; the short spring touches a stopper only as a free end.
 """
 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -26,13 +34,13 @@ def makkar(v, g):
 class Spring:
     """One representative spring of a set between body A (index a) and body B (a+1)."""
 
-    def __init__(self, spring, spring_set, n_seg, a, first_dof, preload):
+    def __init__(self, spring, spring_set, n_seg, a, first_dof, preload, count=None):
         self.k_seg = n_seg * spring.stiffness
         self.phi_seg = spring.arc / n_seg
         self.mass = spring.mass / (n_seg - 1)
         self.r_eff = spring.effective_radius
         self.n_w = spring.active_coils / n_seg
-        self.count = spring_set.count
+        self.count = spring_set.count if count is None else count
         self.pitch = 2 * math.pi / spring_set.count
         self.phi_ps = spring_set.primary_stopper_half_width
         self.phi_ss = spring_set.secondary_stopper_half_width
@@ -95,12 +103,32 @@ def accelerations(system, omega0, q, v, z, tin):
     no, ni = s.solver.outer_segments, s.solver.inner_segments
     extra = ef.spring_preload.force if ef.spring_preload.enabled else 0.0
     springs = [Spring(s.outer.spring, s.outer, no, 0, 3, s.friction.outer.preload + extra)]
-    po = Spring(s.inner.spring, s.inner, ni, 1, 3 + no - 1, s.friction.pair_outer.preload + extra)
+    short = ef.inner_short_springs
+    n_short = short.count if short.enabled and s.inner.nested is not None else 0
+    n_normal = s.inner.count - n_short
+    po = Spring(s.inner.spring, s.inner, ni, 1, 3 + no - 1, s.friction.pair_outer.preload + extra, n_normal)
     springs.append(po)
     pi_ = None
     if s.inner.nested is not None:
-        pi_ = Spring(s.inner.nested, s.inner, ni, 1, 3 + no - 1 + ni - 1, s.friction.pair_inner.preload + extra)
+        pi_ = Spring(s.inner.nested, s.inner, ni, 1, 3 + no - 1 + ni - 1, s.friction.pair_inner.preload + extra,
+                     n_normal)
         springs.append(pi_)
+    pairs = [(po, pi_)]  # (outer of pair, inner of pair or None) per pair design
+    if n_short > 0:
+        # the short inner spring: the nested spring's coil (radii, wire) with the effect's
+        # rate, mass and coils; free arc = the slot between the stoppers at zero windup
+        # minus the clearance
+        pitch = 2 * math.pi / s.inner.count
+        slot = pitch - 2 * max(s.inner.primary_stopper_half_width, s.inner.secondary_stopper_half_width)
+        short_spring = SimpleNamespace(
+            stiffness=short.stiffness, arc=slot - short.clearance, mass=short.mass,
+            effective_radius=s.inner.nested.effective_radius, active_coils=short.active_coils,
+        )
+        first = springs[-1].dofs[-1] + 1
+        spo = Spring(s.inner.spring, s.inner, ni, 1, first, s.friction.pair_outer.preload + extra, n_short)
+        spi = Spring(short_spring, s.inner, ni, 1, first + ni - 1, s.friction.pair_inner.preload + extra, n_short)
+        springs += [spo, spi]
+        pairs.append((spo, spi))
     rig0 = springs[-1].dofs[-1] + 1
     elements = s.rig.elements
     motor = rig0 + len(elements) - 1
@@ -124,10 +152,12 @@ def accelerations(system, omega0, q, v, z, tin):
     normal = np.zeros(n)
     for sp in springs:
         sp.apply(q, v, omega0, torque, normal)
-    if pi_ is not None and ef.nested_radial_transfer.enabled:
+    if ef.nested_radial_transfer.enabled:
         # the inner spring presses on the outer spring of its pair ([thesis] §5.3.2)
-        for do, di in zip(po.dofs, pi_.dofs):
-            normal[do] += ef.nested_radial_transfer.fraction * normal[di]
+        for outer_of_pair, inner_of_pair in pairs:
+            if inner_of_pair is not None:
+                for do, di in zip(outer_of_pair.dofs, inner_of_pair.dofs):
+                    normal[do] += ef.nested_radial_transfer.fraction * normal[di]
     # hardstops: one-sided stiff damped contact on each set's windup
     if s.hardstops.enabled:
         for a, st in ((0, s.outer), (1, s.inner)):
@@ -164,12 +194,6 @@ def accelerations(system, omega0, q, v, z, tin):
         t = cl.capacity * np.tanh(slip / cl.slip_speed) + cl.viscous * slip
         torque[drive] -= t
         torque[0] += t
-    if ef.inner_short_springs.enabled:
-        w = q[1] - q[2]
-        d = float(np.sign(w) * max(abs(w) - ef.inner_short_springs.clearance, 0.0))
-        t = ef.inner_short_springs.count * ef.inner_short_springs.stiffness * d
-        torque[1] -= t
-        torque[2] += t
     if ef.turbine_drag.enabled:
         t = ef.turbine_drag.coefficient * (v[housing] - v[1])
         torque[1] += t
@@ -193,11 +217,14 @@ def accelerations(system, omega0, q, v, z, tin):
 
         for d in springs[0].dofs:
             rub(d, 1, fr.outer.alpha, s.outer.spring.friction_radius)
-        for i, d in enumerate(po.dofs):
-            rub(d, 1, fr.pair_outer.alpha * fr.alpha_sec, s.inner.spring.friction_radius)
-            rub(d, 2, fr.pair_outer.alpha * fr.alpha_ter, s.inner.spring.friction_radius)
-            if pi_ is not None:
-                rub(pi_.dofs[i], d, fr.pair_inner.alpha, s.inner.nested.friction_radius)
+        # every pair design rubs alike: its outer spring on the J_sec/J_ter housing, its
+        # inner spring (on the nested spring's friction radius) on its own outer spring
+        for outer_of_pair, inner_of_pair in pairs:
+            for i, d in enumerate(outer_of_pair.dofs):
+                rub(d, 1, fr.pair_outer.alpha * fr.alpha_sec, s.inner.spring.friction_radius)
+                rub(d, 2, fr.pair_outer.alpha * fr.alpha_ter, s.inner.spring.friction_radius)
+                if inner_of_pair is not None:
+                    rub(inner_of_pair.dofs[i], d, fr.pair_inner.alpha, s.inner.nested.friction_radius)
     acc = torque / inertia
     if s.motor.mode == "held":
         acc[motor] = 0.0

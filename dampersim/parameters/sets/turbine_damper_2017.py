@@ -191,13 +191,18 @@ ORIGINS = {
     "effects.output_backlash.free_play": "estimate: 0.03 rad (1.7 deg), a typical spline and gear clearance of "
     "a transmission input",
     "effects.inner_short_springs.enabled": "model: off, all nested pairs of the simulated damper are full "
-    "length ([thesis] §5.1; docs/model.md §11)",
+    "length ([thesis] §5.1; docs/model.md §4 and docs/model.md §11)",
     "effects.inner_short_springs.count": "[thesis] §5.1: in the smaller damper 2 of the 5 pairs have a "
     "shorter inner spring",
     "effects.inner_short_springs.stiffness": "estimate: the rate of one inner-of-pair spring of this set "
-    "(240 N m/rad)",
+    "(240 N m/rad); the same wire and coil with 10 instead of 11 coils would be ~10 % stiffer, but the thesis "
+    "gives no value for the smaller damper ([thesis] §5.1)",
     "effects.inner_short_springs.clearance": "estimate: 0.1 rad (5.7 deg) of inner windup before the short "
-    "springs engage, inside the 15 deg travel",
+    "springs engage, inside the 15 deg travel (free arc 60 - 5.7 = 54.3 deg in the 60 deg slot)",
+    "effects.inner_short_springs.mass": "estimate: the inner-of-pair spring's 0.035 kg scaled to the short "
+    "spring's 54.3 deg free arc (same wire and coil, [thesis] §5.1)",
+    "effects.inner_short_springs.active_coils": "estimate: the inner-of-pair spring's 11 coils scaled to the "
+    "54.3 deg free arc; block arc 10 x 3 mm / 0.075 m = 23 deg, below the 45 deg left at the inner hardstop",
     "effects.turbine_drag.enabled": "model: off, the thesis neglects the oil flow with the clutch locked "
     "([thesis] §5.1; docs/model.md §11)",
     "effects.turbine_drag.coefficient": "estimate: a drag of a few N m at the damper's oscillation speeds "

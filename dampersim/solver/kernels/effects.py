@@ -2,7 +2,8 @@
 
 Each is off when its P slot is zero; see :mod:`dampersim.solver.layout` for the slots.
 Smooth effects add torques in :func:`dampersim.solver.kernels.forces.forces`; the lock-up
-clutch's slip is solved implicitly after the friction step.
+clutch's slip is solved implicitly after the friction step. Effect inner_short_springs
+has no kernel of its own: the layout adds its pair as spring rows and friction contacts.
 """
 
 from numba import njit
@@ -20,8 +21,6 @@ from dampersim.solver.layout import (
     P_PA_C,
     P_PA_DOF,
     P_PA_K,
-    P_SS_GAP,
-    P_SS_K,
     P_TD_C,
 )
 
@@ -41,16 +40,17 @@ def dead_zone(x, half):
 def nested_radial_transfer(P, SI, FN):
     """Effect nested_radial_transfer ([thesis] §5.3.2): the inner spring of each nested
     pair presses on its outer spring, so a share P[P_NRT] of the inner mass's normal force
-    adds to the normal force of the outer spring's mass of the same index (spring rows 1
-    and 2: pair outer, pair inner)."""
-    if SI.shape[0] < 3:
-        return
-    n = SI[1, I_N]
-    o1 = SI[1, I_OFF]
-    o2 = SI[2, I_OFF]
+    adds to the normal force of the outer spring's mass of the same index. Spring rows 1
+    and 2 are the normal pair (outer, inner), rows 3 and 4 the short pair of effect
+    inner_short_springs when present; both springs of a pair represent the same number
+    of pairs, so the count-scaled forces add directly."""
     f = P[P_NRT]
-    for i in range(n - 1):
-        FN[o1 + i] += f * FN[o2 + i]
+    for r in range(1, SI.shape[0] - 1, 2):
+        n = SI[r, I_N]
+        o1 = SI[r, I_OFF]
+        o2 = SI[r + 1, I_OFF]
+        for i in range(n - 1):
+            FN[o1 + i] += f * FN[o2 + i]
 
 
 @njit(**LEAF)
@@ -58,23 +58,12 @@ def effect_forces(q, v, P, FC, FD):
     """Conservative (FC) and dissipative (FD) torques of the smooth effects; returns their
     elastic energy [J].
 
-    - inner_short_springs: a third stage on the inner windup w = q_sec - q_ter,
-      T = K3 * dead_zone(w, gap) (shorter springs engage either way once the slot has
-      closed by the clearance);
     - turbine_drag: T = c (v_housing - v_sec) on J_sec, the reaction on the housing
       (J_pri, or the clutch drive side when the clutch can slip);
     - pendulum_absorber: linearised pendulum DOF on J_sec with restoring stiffness
       J_a (n Omega0)^2 and damping c_a.
     """
     energy = 0.0
-    k3 = P[P_SS_K]
-    if k3 > 0.0:
-        d = dead_zone(q[1] - q[2], P[P_SS_GAP])
-        if d != 0.0:
-            t = k3 * d
-            FC[1] -= t
-            FC[2] += t
-            energy += 0.5 * k3 * d * d
     c = P[P_TD_C]
     if c > 0.0:
         h = int(P[P_INPUT])
@@ -98,9 +87,6 @@ def effect_forces(q, v, P, FC, FD):
 def effect_energy(q, P):
     """Elastic energy [J] stored by the effects' springs (see effect_forces)."""
     energy = 0.0
-    if P[P_SS_K] > 0.0:
-        d = dead_zone(q[1] - q[2], P[P_SS_GAP])
-        energy += 0.5 * P[P_SS_K] * d * d
     pa = int(P[P_PA_DOF])
     if pa >= 0:
         dq = q[1] - q[pa]
