@@ -3,8 +3,10 @@ and order cuts with the input for context ([thesis] §6.3.1).
 
 URL keys: ``speeds`` (rpm, "900:2800:50" or "1200,1500"), ``torque`` [N m], ``orders``,
 ``duration`` [s], ``window`` [s], ``fmax`` [Hz], ``db`` (true/false), ``cuts`` ("2,4"),
-plus dotted parameter names. The sweep runs in the background with progress and cancel;
-finished test points are cached, so a repeated or continued sweep is fast.
+``repeat`` (repeatability runs per speed, 2-32, off when absent: the order cuts get the
+min-max of the K runs as a band), plus dotted parameter names. The sweep runs in the
+background with progress and cancel; finished test points are cached, so a repeated or
+continued sweep is fast.
 """
 
 from __future__ import annotations
@@ -58,6 +60,10 @@ def layout(**query):
             W.control("Order cuts", dcc.Checklist(id="colourmap-cuts", options=CUT_OPTIONS,
                                                   value=[c for c in state["cuts"].split(",") if c in {o["value"] for o in CUT_OPTIONS}],
                                                   inline=True, className="checks")),
+            W.control("Repeatability runs", W.number("colourmap-repeat", state["repeat"], step=1, placeholder="off"), "runs",
+                      hint="Off, or 2-32: every speed runs K times with the input amplitudes scaled by 1 + i·1e-9 and "
+                           "the order cuts show the spread of the K runs as a band. The sweep costs K times as much.",
+                      cid="colourmap-repeat"),
         ]),
         W.run_panel(PAGE, "Run sweep"),
     ]
@@ -85,19 +91,22 @@ CONTROL_INPUTS = [
     Input("colourmap-fmax", "value"),
     Input("colourmap-db", "value"),
     Input("colourmap-cuts", "value"),
+    Input("colourmap-repeat", "value"),
 ]
 
 
 def state_from_values(values, base_params):
     """Controls -> (state, system, notices)."""
-    speeds, torque, ks, amps, phases, duration, window, fmax, db, cuts = values
+    speeds, torque, ks, amps, phases, duration, window, fmax, db, cuts, *rest = values
+    repeat = rest[0] if rest else None  # the Repeatability runs box (None: off)
     orders_text, notices = orders_text_from_rows(ks, amps, phases)
     cuts_text = ",".join(sorted(cuts or [], key=float)) or None
     if cuts is not None and not cuts:
         notices.append(notice("No order cut selected; showing the excited orders."))
         cuts_text = ",".join(f"{k:g}" for k, a, _ in parse_orders_deg(orders_text or "2:300") if k <= 8 and (2 * k).is_integer()) or "2"
     state, more = state_from_controls(PAGE, {"speeds": speeds, "torque": torque, "orders": orders_text, "duration": duration,
-                                             "window": window, "fmax": fmax, "db": bool(db), "cuts": cuts_text}, base_params)
+                                             "window": window, "fmax": fmax, "db": bool(db), "cuts": cuts_text,
+                                             "repeat": repeat}, base_params)
     system = resolve_system(state["params"], more)
     return state, system, notices + more
 
@@ -120,14 +129,18 @@ def job(job_data, progress):
 
 def render(view):
     s = view["summary"]
+    runs = s.get("repeat")
+    points = f"{s['speeds']} speeds x {runs} runs" if runs else f"{s['points']} points"
     cards = W.summary_cards(
         [(f"Order {r['order']:g}", f"MR ≤ {W.fmt(r['max_mr'], 3)}", f"max at {W.fmt(r['at_rpm'], 4, 'rpm')}") for r in view["cuts"]]
-        + [("Sweep", f"{s['points']} points", f"{s['sweep_time_s']:.1f} s, {s['computed']} computed, {s['from_cache']} cached")]
+        + [("Sweep", points, f"{s['sweep_time_s']:.1f} s, {s['computed']} computed, {s['from_cache']} cached")]
     )
-    rows = [{"order": f"{r['order']:g}", "max": W.fmt(r["max_mr"], 4), "at": W.fmt(r["at_rpm"], 5), "mean": W.fmt(r["mean_mr"], 4)}
-            for r in view["cuts"]]
-    tab = W.table([("order", "Order"), ("max", "Largest MR [-]"), ("at", "at speed [rpm]"), ("mean", "Mean MR [-]")], rows,
-                  cid="colourmap-mr-table")
+    rows = [{"order": f"{r['order']:g}", "max": W.fmt(r["max_mr"], 4), "at": W.fmt(r["at_rpm"], 5), "mean": W.fmt(r["mean_mr"], 4),
+             "spread": W.fmt(r.get("max_spread_pct"), 3), "spread_at": W.fmt(r.get("spread_at_rpm"), 5)} for r in view["cuts"]]
+    cols = [("order", "Order"), ("max", "Largest MR [-]"), ("at", "at speed [rpm]"), ("mean", "Mean MR [-]")]
+    if runs:
+        cols += [("spread", f"Largest spread of {runs} runs [%]"), ("spread_at", "at speed [rpm]")]
+    tab = W.table(cols, rows, cid="colourmap-mr-table")
     return view["figures"]["colourmap"], view["figures"]["cuts"], tab, cards
 
 

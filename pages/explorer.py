@@ -2,7 +2,8 @@
 
 URL keys: ``speed`` [rpm], ``torque`` [N m], ``orders`` ("2:300,4:100@90": order,
 amplitude [N m], phase [deg]), ``duration`` [s], ``repeat`` (repeatability runs, 2-32, off
-when absent) and any dotted parameter name (SI values),
+when absent), ``spread_check`` (true: with ``repeat``, the K runs again at half the step
+label each order's spread physical or numerical) and any dotted parameter name (SI values),
 e.g. ``/explorer?speed=2100&torque=260&solver.outer_segments=24``.
 """
 
@@ -45,6 +46,8 @@ def layout(**query):
                       hint="Off by default. K runs (2-32) with the input amplitudes scaled by 1 + i·1e-9: the magnification "
                            "gets the min-max of the K runs as a band and the table the spread per order. Costs K runs.",
                       cid="explorer-repeat"),
+            dcc.Checklist(id="explorer-spread-check", options=[{"label": " Spread check at half the step", "value": "on"}],
+                          value=["on"] if state["spread_check"] else [], className="checks"),
             W.run_button(PAGE),
         ]),
         W.section("Excitation orders", [W.order_rows(PAGE, state["orders"])]),
@@ -100,9 +103,17 @@ def _kpis(view):
     ])
 
 
+def _spread_text(r) -> str:
+    """"3.2" or, after a spread check, "3.2 (physical)" / "3.2, 0.01 at dt/2 (numerical)"."""
+    text = W.fmt(r.get("spread_pct"), 3)
+    if r.get("spread_half_pct") is not None and r.get("spread_origin") != "physical":
+        text += f", {W.fmt(r['spread_half_pct'], 3)} at dt/2"
+    return text + (f" ({r['spread_origin']})" if r.get("spread_origin") else "")
+
+
 def _orders_table(rows, runs=None):
     data = [{"order": f"{r['order']:g}", "f": f"{r['frequency_hz']:.1f}", "in": W.fmt(r["input_nm"], 4), "out": W.fmt(r["output_nm"], 4),
-             "mr": W.fmt(r["mr"], 4), "spread": W.fmt(r.get("spread_pct"), 3), "excited": r["excited"]} for r in rows]
+             "mr": W.fmt(r["mr"], 4), "spread": _spread_text(r), "excited": r["excited"]} for r in rows]
     cols = [("order", "Order"), ("f", "Frequency [Hz]"), ("in", "Input [N m]"), ("out", "Output [N m]"), ("mr", "MR [-]")]
     if runs:
         cols.append(("spread", f"Spread of {runs} runs [%]"))
@@ -110,7 +121,7 @@ def _orders_table(rows, runs=None):
 
 
 def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
-                     run=False, initial=False, repeat=None):
+                     run=False, initial=False, repeat=None, spread_check=None):
     """Everything the Explorer shows for the current controls (plain function, testable).
 
     Returns a dict: figures {name: figure}, table, kpis, notices, search, params, error,
@@ -121,7 +132,10 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     only on ``run``: ``pending`` is True and a notice gives the estimate. A link's refused
     values have already fallen back to their defaults (the URL contract), which run.
     ``repeat`` (the "Repeatability runs" box; None = off) runs the point K times, so the
-    cost checked is K runs. A point to compute takes one of the server's foreground slots
+    cost checked is K runs; ``spread_check`` (the "Spread check" box: a list holding "on",
+    or True) runs them again at half the step and labels each order's spread
+    (:func:`dampersim.analysis.repeatability.spread_check`), K more runs of twice the steps
+    in the cost. A point to compute takes one of the server's foreground slots
     (:func:`dampersim.costs.foreground_slot`); when none is free nothing runs, ``error``
     and ``busy`` are set and a notice says the server is busy (a cache hit needs no slot).
     """
@@ -135,7 +149,7 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     values += [n in sw for n in SWITCHES] + [motor or "pi"]
     params, system = control_params(base_params, names, values, notices)
     state, more = state_from_controls(PAGE, {"speed": speed, "torque": torque, "orders": orders_text, "duration": duration,
-                                             "repeat": repeat}, params)
+                                             "repeat": repeat, "spread_check": True if spread_check else None}, params)
     notices += more
     out = J.foreground_run(PAGE, explorer_key(system, state), system, state, run, explorer_view)
     if "notice" in out:
@@ -174,13 +188,14 @@ def explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, sw
     State("explorer-last-good", "data"),
     Input("explorer-run", "n_clicks"),
     Input("explorer-repeat", "value"),
+    Input("explorer-spread-check", "value"),
     prevent_initial_call="initial_duplicate",
 )
 def update_explorer(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params, last_good,
-                    run_clicks=None, repeat=None):
+                    run_clicks=None, repeat=None, spread_check=None):
     initial, run = W.triggers("explorer-run.n_clicks")
     out = explorer_outputs(speed, torque, ks, amps, phases, duration, param_values, switches, motor, param_ids, base_params,
-                           run=run, initial=initial, repeat=repeat)
+                           run=run, initial=initial, repeat=repeat, spread_check=spread_check)
     notices = W.render_notices(out["notices"])
     hidden, shown = {"display": "none"}, {"display": "block"}
     if out.get("pending"):

@@ -3,7 +3,8 @@
 - :func:`colourmap_figure`: FFT colourmap(s) with order lines ([thesis] §6.3.1, Fig. 6.12-6.13)
 - :func:`banded_colourmap_figure`: the same with float32 colours and a fixed dB range below
   each map's peak (the dashboard's view)
-- :func:`order_cut_figure`: order cuts with input context and MR ([thesis] §6.3.1, Fig. 6.14-6.15)
+- :func:`order_cut_figure`: order cuts with input context and MR ([thesis] §6.3.1, Fig. 6.14-6.15),
+  optionally with the repeatability spread of each cut as a shaded band
 """
 
 from __future__ import annotations
@@ -133,6 +134,8 @@ def order_cut_figure(
     reference: pd.DataFrame | None = None,
     reference_label: str = "measured",
     title: str | None = "Order cuts",
+    band: pd.DataFrame | None = None,
+    runs: int | None = None,
 ) -> go.Figure:
     """Order amplitudes over speed with the input for context ([thesis] §6.3.1, Fig. 6.14).
 
@@ -145,6 +148,10 @@ def order_cut_figure(
         orders: orders to draw (default all in ``cuts``).
         speed_unit: "rpm" or "rad/s".
         reference: optional second cut table (e.g. measured) drawn dotted for comparison.
+        band: optional spread of the cuts over repeatability runs
+            (:func:`dampersim.analysis.repeatability.sweep_spread`: speed_rad_s, order,
+            output_min_nm, output_max_nm, mr_min, mr_max), drawn as a shaded band around
+            the output and the MR of each order; runs: the number of runs, for its label.
     """
     need = ("speed_rad_s", "order", "input_amplitude_nm", "output_amplitude_nm", "magnification")
     for name, tab in (("cuts", cuts), ("reference", reference)):
@@ -161,6 +168,8 @@ def order_cut_figure(
             raise InputError(f"order {k:g} is not in the cut table: accepted are {sorted(set(cuts['order']))}")
         x = theme.speed(sub["speed_rad_s"], speed_unit)
         lab = f"order {order_text(k)}"
+        if band is not None:
+            _band(fig, band, k, col, lab, speed_unit)
         fig.add_trace(go.Scatter(x=x, y=sub["output_amplitude_nm"], name=f"{lab} output", legendgroup=lab, line=dict(color=col)), row=1, col=1, secondary_y=False)
         fig.add_trace(go.Scatter(x=x, y=sub["input_amplitude_nm"], name=f"{lab} input", legendgroup=lab, line=dict(color=col, dash="dash", width=1.5), opacity=0.7), row=1, col=1, secondary_y=True)
         fig.add_trace(go.Scatter(x=x, y=sub["magnification"], name=f"{lab} MR", legendgroup=lab, line=dict(color=col), showlegend=False), row=2, col=1)
@@ -171,6 +180,10 @@ def order_cut_figure(
                 fig.add_trace(go.Scatter(x=xr, y=ref["output_amplitude_nm"], name=f"{lab} output ({reference_label})", legendgroup=lab, line=dict(color=col, dash="dot")), row=1, col=1, secondary_y=False)
                 fig.add_trace(go.Scatter(x=xr, y=ref["magnification"], name=f"{lab} MR ({reference_label})", legendgroup=lab, line=dict(color=col, dash="dot"), showlegend=False), row=2, col=1)
     fig.add_hline(y=1.0, line=dict(color="#444444", width=1, dash="dash"), row=2, col=1)
+    if band is not None:
+        fig.add_annotation(text=(f"bands: min-max of {runs} runs" if runs else "bands: min-max over the repeatability runs")
+                           + ", input amplitudes x (1 + i·1e-9)", showarrow=False, xref="paper", yref="paper", x=1.0, y=1.0,
+                           xanchor="right", yanchor="bottom", font=dict(size=11))
     fig.update_yaxes(title_text=axis_title("Output amplitude", "N m"), row=1, col=1, secondary_y=False, rangemode="tozero")
     fig.update_yaxes(title_text=axis_title("Input amplitude", "N m"), row=1, col=1, secondary_y=True, showgrid=False, rangemode="tozero")
     fig.update_yaxes(title_text=axis_title("Magnification ratio", "-"), row=2, col=1)
@@ -178,4 +191,26 @@ def order_cut_figure(
     return theme.apply(fig, title, height=650)
 
 
-__all__ = ["colourmap_figure", "banded_colourmap_figure", "order_cut_figure"]
+BAND_COLUMNS = ("speed_rad_s", "order", "output_min_nm", "output_max_nm", "mr_min", "mr_max")
+
+
+def _band(fig, band, k, col, lab, speed_unit):
+    """Shaded min-max band of order ``k``'s output (top panel) and MR (bottom panel)."""
+    if not isinstance(band, pd.DataFrame) or any(c not in band.columns for c in BAND_COLUMNS):
+        raise InputError(f"band: accepted is a spread table with columns {list(BAND_COLUMNS)}")
+    sub = band[np.isclose(band["order"], k)].sort_values("speed_rad_s")
+    r, g, b = (int(col[i:i + 2], 16) for i in (1, 3, 5))
+    fill = f"rgba({r},{g},{b},0.25)"
+    for lo, hi, row, name in (("output_min_nm", "output_max_nm", 1, "output"), ("mr_min", "mr_max", 2, "MR")):
+        ok = np.isfinite(sub[lo].to_numpy(float)) & np.isfinite(sub[hi].to_numpy(float))
+        if not ok.any():
+            continue
+        x = np.asarray(theme.speed(sub["speed_rad_s"].to_numpy(float)[ok], speed_unit), dtype=float)
+        y_lo, y_hi = sub[lo].to_numpy(float)[ok], sub[hi].to_numpy(float)[ok]
+        fig.add_trace(go.Scatter(x=np.concatenate([x, x[::-1]]).tolist(), y=np.concatenate([y_hi, y_lo[::-1]]).tolist(), fill="toself",
+                                 fillcolor=fill, line=dict(width=0.5, color=fill), mode="lines", name=f"{lab} {name} spread",
+                                 legendgroup=lab, showlegend=row == 1, hoverinfo="skip"),
+                      row=row, col=1, **({"secondary_y": False} if row == 1 else {}))
+
+
+__all__ = ["BAND_COLUMNS", "colourmap_figure", "banded_colourmap_figure", "order_cut_figure"]

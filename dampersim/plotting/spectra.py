@@ -93,7 +93,8 @@ def mr_figure(rows, title="Magnification ratio per order", runs: int | None = No
     """MR [-] per order on a log axis with MR = 1 marked (excited orders dark); orders
     without input (not excited) have no ratio and are left out. Rows with ``mr_range``
     ([min, max] over ``runs`` repeatability runs) get it as an error bar around the bar, and
-    their ``spread_pct`` [%] in the hover."""
+    their ``spread_pct`` [%] in the hover, with ``spread_origin`` ("physical" or "numerical")
+    where a spread check labelled it."""
     rows = [r for r in rows if r["mr"] is not None and r["mr"] > 0]
     fig = go.Figure()
     band = any(r.get("mr_range") for r in rows)
@@ -112,7 +113,8 @@ def mr_figure(rows, title="Magnification ratio per order", runs: int | None = No
             width=0.45 if len(rows) > 1 else 0.3,
             marker=dict(color=[theme.COLOURWAY[0] if r["excited"] else "#9AB8D3" for r in rows]),
             customdata=[[r["input_nm"], r["output_nm"], r["frequency_hz"],
-                         "—" if r.get("spread_pct") is None else f"{r['spread_pct']:.3g} %"] for r in rows],
+                         ("—" if r.get("spread_pct") is None else f"{r['spread_pct']:.3g} %")
+                         + (f" ({r['spread_origin']})" if r.get("spread_origin") else "")] for r in rows],
             hovertemplate="order %{x}<br>MR %{y:.4g}<br>input %{customdata[0]:.3g} N m<br>"
                           "output %{customdata[1]:.3g} N m<br>%{customdata[2]:.1f} Hz"
                           + ("<br>spread %{customdata[3]}" if band else "") + "<extra></extra>",

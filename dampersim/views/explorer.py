@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from dampersim.analysis.order_table import order_table
-from dampersim.analysis.repeatability import repeatability
+from dampersim.analysis.repeatability import repeatability, spread_check
 from dampersim.plotting import (
     energy_balance_figure,
     mr_figure,
@@ -67,6 +67,15 @@ def with_spread(rows, rep) -> list:
     return out
 
 
+def with_origin(rows, check) -> list:
+    """Rows of :func:`with_spread` with a
+    :class:`~dampersim.analysis.repeatability.SpreadCheck` of the same orders:
+    ``spread_half_pct`` [%] (the spread at half the step, None as ``spread_pct``) and
+    ``spread_origin`` ("physical", "numerical" or None,
+    :func:`dampersim.analysis.repeatability.spread_origin`)."""
+    return [{**r, "spread_half_pct": check.spread_pct[j], "spread_origin": check.origin[j]} for j, r in enumerate(rows)]
+
+
 def _explorer_key(system, state, **_):
     return view_key("explorer", system, state, module=__name__)
 
@@ -85,7 +94,9 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
     [N m], orders ("2:300,4:100@90", phase in deg), duration [s], repeat (None or K runs:
     the point runs K times with the input amplitudes scaled by 1 + i·1e-9 and each order
     row gets ``spread_pct`` [%], ``output_range_nm`` and ``mr_range`` over the K runs,
-    :func:`with_spread`; the figures and the rest show run 0). Returns a dict with
+    :func:`with_spread`; the figures and the rest show run 0), spread_check (True: with
+    repeat, the K runs again at half ``solver.time_step``, each row labelled by
+    :func:`with_origin`). Returns a dict with
     ``figures`` (traces, spectrum, mr, windup, energy), ``orders`` (rows of
     :func:`dampersim.analysis.order_table.order_table`), ``summary`` and ``key``;
     ``from_cache`` tells whether it came from the view cache.
@@ -102,6 +113,8 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
     if runs:
         rep = repeatability(system, ex, int(runs), [r["order"] for r in rows], seconds, duration=duration, run0=res)
         rows = with_spread(rows, rep)
+        if state.get("spread_check"):
+            rows = with_origin(rows, spread_check(system, ex, rep, seconds, duration=duration))
     speed_rpm = float(state["speed"])
     traces = recent_traces_figure(res, duration, max_points=TRACE_POINTS,
                                   title=f"Torque at {number_text(round(speed_rpm, 1))} rpm, {number_text(state['torque'])} N m mean")
@@ -128,10 +141,11 @@ def explorer_view(system, state: dict, use_cache: bool = True) -> dict:
         "hardstop_inner_share": float(np.mean(res.hardstop_inner[w] != 0.0)),
         "kernel_time_s": float(res.wall_time),
         "repeat": int(runs) if runs else None,
+        "spread_check": bool(runs and state.get("spread_check")),
         **_energy_summary(res),
     }
     summary["compute_time_s"] = time.perf_counter() - t0
     return {"kind": "explorer", "figures": figures, "orders": rows, "summary": summary}
 
 
-__all__ = ["TRACE_POINTS", "ENERGY_POINTS", "analysis_seconds", "explorer_key", "explorer_view", "with_spread"]
+__all__ = ["TRACE_POINTS", "ENERGY_POINTS", "analysis_seconds", "explorer_key", "explorer_view", "with_spread", "with_origin"]

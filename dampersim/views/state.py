@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from urllib.parse import quote
 
 from dampersim import costs
+from dampersim.analysis.repeatability import repeatability_cost
 from dampersim.errors import InputError
 from dampersim.excitation import PROTOCOLS, OrderSum, parse_orders, ramp_protocol
-from dampersim.units import number_text
 from dampersim.sweeps.grid import count_values, parse_values
-from dampersim.units import deg_to_rad, rpm_to_rad_s
-from dampersim.units import parse_number
+from dampersim.units import deg_to_rad, number_text, parse_number, rpm_to_rad_s
 from dampersim.views.notices import notice, query_value
 from dampersim.views.params import parameter_query_items, parse_parameters, resolve_system
 
@@ -99,6 +98,7 @@ PAGES: dict[str, tuple[Field, ...]] = {
         Field("duration", "Simulated time", "float", None, "s", 1.0, 20.0, doc="default: the parameter set's solver.duration"),
         Field("repeat", "Repeatability runs", "runs", None, "runs", 2, 32,
               doc="off (default) or K runs with the input amplitudes scaled by 1 + i·1e-9: the spread of each order"),
+        Field("spread_check", "Spread check", "bool", None, doc="with repeat: the K runs again at half the step label each spread"),
     ),
     "colourmap": (
         Field("speeds", "Speeds", "speeds", "900:2800:50", "rpm", 300.0, 6000.0, doc="speed sweep (the thesis steps 10 rpm)"),
@@ -109,6 +109,7 @@ PAGES: dict[str, tuple[Field, ...]] = {
         Field("fmax", "Top frequency", "float", 500.0, "Hz", 50.0, 1000.0),
         Field("db", "Colour in dB", "bool", True),
         Field("cuts", "Order cuts", "order_list", "2,4", **_ORDER_LIMITS),
+        Field("repeat", "Repeatability runs", "runs", None, "runs", 2, 32, doc="off (default) or K runs per speed: a band"),
     ),
     "hysteresis": (
         Field("protocol", "Ramp protocol", "choice", "full-450", choices=tuple(PROTOCOLS)),
@@ -356,7 +357,7 @@ def parse_field(f: Field, raw):
 
 def _display(f: Field, value) -> str:
     if value is None:
-        return "off" if f.kind == "runs" else "(none)"
+        return "off" if f.kind in ("runs", "bool") else "(none)"
     u = f" {f.unit}" if f.unit and f.kind in ("float", "int") else ""
     return f"{number_text(value)}{u}"
 
@@ -435,6 +436,9 @@ def _capped_query(query: dict, notices: list) -> dict:
 
 def _cross_checks(page, state, notices):
     """Checks between fields; fix the state and add notices."""
+    if page == "explorer" and state["spread_check"] and not state["repeat"]:
+        notices.append(notice("Spread check (spread_check=true) needs repeat: accepted is it with repeat from 2 to 32. Using off."))
+        state["spread_check"] = None
     if page in ("colourmap", "maps"):
         steady = 0.6  # OrderSum start-up: 0.3 s mean ramp + 0.3 s amplitude ramp
         room = state["duration"] - steady
@@ -533,18 +537,15 @@ def reparse_state(page: str, state) -> tuple:
 
 def state_cost(page: str, system, state: dict, n_points: int | None = None):
     """The :class:`dampersim.costs.Cost` of computing a (validated) page state with
-    ``system``: one point (Explorer; Segments with its segment record), a sweep (Colourmap,
-    Maps: ``n_points`` test points when given, e.g. only those not in the cache), or the
-    hysteresis ramps (one protocol run per speed)."""
+    ``system``: one point (Explorer, K times with ``repeat``; Segments with its segment record), a sweep (Colourmap,
+    K runs per speed with ``repeat``; Maps: ``n_points`` test point runs when given, e.g. only those not in the
+    cache), or the hysteresis ramps (one protocol run per speed)."""
     if page in ("explorer", "segments"):
-        one = costs.point_cost(system, float(state["duration"]), record_segments=(page == "segments"))
-        k = state.get("repeat") if page == "explorer" else None
-        if not k:
-            return one
-        # K runs one after the other; run 0 is kept while the others run
-        return costs.Cost(k * one.work, 2 * one.bytes, f"this test point run {k} times (repeatability)")
+        if page == "explorer" and state.get("repeat"):  # K runs (and K at half the step) one after the other
+            return repeatability_cost(system, float(state["duration"]), state["repeat"], bool(state.get("spread_check")))
+        return costs.point_cost(system, float(state["duration"]), record_segments=(page == "segments"))
     if page in ("colourmap", "maps"):
-        n = count_values(state["speeds"], "speeds", "rpm")
+        n = count_values(state["speeds"], "speeds", "rpm") * (state.get("repeat") or 1)  # K runs of each speed
         if page == "maps":
             n *= count_values(state["torques"], "torques", "N m")
         total = int(n)

@@ -13,6 +13,7 @@ import numpy as np
 from dampersim.analysis.colourmap import colourmaps, order_cuts
 from dampersim.analysis.maps import magnification_map, predict_along_curve, torque_curve_overlay
 from dampersim.analysis.order_table import REPORT_ORDERS
+from dampersim.analysis.repeatability import STEP, check_runs, sweep_spread
 from dampersim.errors import InputError
 from dampersim.excitation import default_torque_curve
 from dampersim.plotting import (
@@ -21,11 +22,11 @@ from dampersim.plotting import (
     magnification_map_figure,
     order_cut_figure,
 )
-from dampersim.units import number_text
+from dampersim.units import number_text, rad_s_to_rpm
 from dampersim import jobs
 from dampersim.sweeps.cache import ResultCache, cache_key, kernel_source_hash
 from dampersim.sweeps.executor import SweepCancelled, run_sweep
-from dampersim.sweeps.grid import make_grid, parse_range, parse_torques
+from dampersim.sweeps.grid import TestPoint, make_grid, parse_range, parse_torques
 from dampersim.views.state import orders_si, parse_orders_deg
 from dampersim.views.store import cached_view, view_key, view_store
 
@@ -87,9 +88,25 @@ def sweep_points(speeds_text, torques, orders_text) -> list:
     return make_grid(parse_range(speeds_text), list(torques), orders_si(parse_orders_deg(orders_text)))
 
 
+def repeated_points(points, runs) -> list:
+    """``points`` run ``runs`` (K) times, run i with every order amplitude scaled by
+    (1 + i·1e-9) as :func:`dampersim.analysis.repeatability.repeatability` does, run after
+    run: point p of the list is run p // len(points) of ``points[p % len(points)]``. Each
+    run is a test point of its own, cached like any other. ``runs`` None or 1: ``points``."""
+    points = list(points)
+    if runs in (None, 1):
+        return points
+    out = list(points)
+    for i in range(1, check_runs(runs, "repeat")):
+        s = 1.0 + i * STEP
+        out += [TestPoint(p.speed, p.mean_torque, tuple((k, a * s, ph) for k, a, ph in p.orders)) for p in points]
+    return out
+
+
 def colourmap_points(state) -> list:
-    """Test points of a Colourmap page state."""
-    return sweep_points(state["speeds"], [float(state["torque"])], state["orders"])
+    """Test points of a Colourmap page state: its speeds, K times with ``repeat`` = K
+    (:func:`repeated_points`)."""
+    return repeated_points(sweep_points(state["speeds"], [float(state["torque"])], state["orders"]), state.get("repeat"))
 
 
 def maps_points(state) -> list:
@@ -186,24 +203,35 @@ def colourmap_view(system, state: dict, progress=None, cancel=None, cache_only: 
     :func:`dampersim.sweeps.run_sweep` (SweepCancelled when cancelled; finished points stay
     cached). ``cache_only``: return None unless every point is cached (nothing is
     simulated). ``executor``: "serial" or "processes" (default: processes when more than
-    two points are missing).
+    two points are missing). With ``repeat`` = K every speed runs K times
+    (:func:`repeated_points`): the colourmaps and cuts show run 0, the cuts get the
+    min-max of the K runs as a band and each cut row its largest spread
+    (:func:`dampersim.analysis.repeatability.sweep_spread`).
     """
     t0 = time.perf_counter()
     cuts = [float(k) for k in str(state["cuts"]).split(",") if k]
     table_orders = _table_orders(state["orders"], cuts)
+    runs = state.get("repeat")
+    points = colourmap_points(state)
+    n = len(points) // (runs or 1)  # the speeds; run 0 is the first n points
     try:
-        result = _run_points(system, colourmap_points(state), float(state["duration"]), float(state["window"]), table_orders,
+        result = _run_points(system, points, float(state["duration"]), float(state["window"]), table_orders,
                              progress, cancel, cache_only, workers, executor)
     except SweepCancelled:
         if cache_only:
             return None
         raise
     fmax = float(state["fmax"])
-    maps = colourmaps(result.spectra("input"), result.spectra("output"), f_max_hz=fmax)
+    maps = colourmaps(result.spectra("input")[:n], result.spectra("output")[:n], f_max_hz=fmax)
     fig = banded_colourmap_figure(maps, orders=REPORT_ORDERS, f_max_hz=fmax, db=bool(state["db"]),
                                   title=f"FFT colourmaps at {number_text(state['torque'])} N m mean torque")
-    cut_table = order_cuts(result.table, orders=cuts)
-    cut_fig = order_cut_figure(cut_table, orders=cuts, title="Order cuts: output (solid, left) and input (dashed, right)")
+    cut_table = order_cuts(result.table[result.table["point"] < n], orders=cuts)
+    band = None
+    if runs:
+        band = sweep_spread(result.table, n)
+        band = band[np.isclose(band["order"].to_numpy()[:, None], np.asarray(cuts)[None, :]).any(axis=1)]
+    cut_fig = order_cut_figure(cut_table, orders=cuts, band=band, runs=runs,
+                               title="Order cuts: output (solid, left) and input (dashed, right)")
     rows = []
     for k in cuts:
         sub = cut_table[np.isclose(cut_table["order"], k)]
@@ -215,9 +243,21 @@ def colourmap_view(system, state: dict, progress=None, cancel=None, cache_only: 
                          "mean_mr": float(np.nanmean(mr))})
         else:
             rows.append({"order": k, "max_mr": None, "at_rpm": None, "mean_mr": None})
-    summary = {**_sweep_summary(result), "compute_time_s": time.perf_counter() - t0}
+        if band is not None:
+            rows[-1].update(_largest_spread(band[np.isclose(band["order"], k)]))
+    summary = {**_sweep_summary(result), "speeds": n, "repeat": runs, "compute_time_s": time.perf_counter() - t0}
     return {"kind": "colourmap", "figures": {"colourmap": fig.to_dict(), "cuts": cut_fig.to_dict()}, "cuts": rows,
             "summary": summary}
+
+
+def _largest_spread(rows) -> dict:
+    """{"max_spread_pct" [%], "spread_at_rpm" [rpm]} of one order's band rows (None where
+    no speed has a spread)."""
+    sp = rows["spread_pct"].to_numpy(float)
+    if not np.isfinite(sp).any():
+        return {"max_spread_pct": None, "spread_at_rpm": None}
+    i = int(np.nanargmax(sp))
+    return {"max_spread_pct": float(sp[i]), "spread_at_rpm": float(rad_s_to_rpm(rows["speed_rad_s"].iloc[i]))}
 
 
 # --------------------------------------------------------------------------- maps
@@ -274,6 +314,7 @@ __all__ = [
     "SweepRegistry",
     "running_sweeps",
     "sweep_points",
+    "repeated_points",
     "colourmap_points",
     "maps_points",
     "sweep_status",
