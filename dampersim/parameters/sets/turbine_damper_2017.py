@@ -132,8 +132,9 @@ ORIGINS = {
     "rig.elements.gearbox.inertia": f"{_MID_92} the gearbox (0.100-0.130 kg m^2)",
     "rig.elements.gearbox.inertia_damping": _BJ,
     "rig.elements.gearbox.shaft_stiffness": "[thesis] Table 9.2: inside the gearbox range 9000-12500 N m/rad",
-    "rig.elements.gearbox.shaft_damping": "estimate: 5 N m s/rad, outside the 50-100 range of [thesis] Table 9.2: "
-    "an in-range value over-damps the hub-on-gearbox mode and erases the 170-210 Hz band the thesis measured",
+    "rig.elements.gearbox.shaft_damping": f"{_BK}, like the other rig shafts. The former 5 N m s/rad (outside "
+    "the range) did not make the 170-210 Hz band of [thesis] §7.2 appear: the magnification at 170-210 Hz "
+    "shows no peak with 5 that 50-100 lack, above or below the knee (docs/thesis-comparison.md)",
     "rig.elements.flange_group_1.inertia": f"{_MID_92} flange group 1 (0.025-0.035 kg m^2)",
     "rig.elements.flange_group_1.inertia_damping": _BJ,
     "rig.elements.flange_group_1.shaft_stiffness": f"{_MID_92} the flange groups (1.4e6-1.6e6 N m/rad)",
@@ -289,7 +290,7 @@ def build() -> DamperSystem:
         hardstops=Hardstops(),
         rig=Rig(
             elements=(
-                RigElement("gearbox", 0.115, 0.010, 10500.0, 5.0),
+                RigElement("gearbox", 0.115, 0.010, 10500.0, 75.0),
                 RigElement("flange_group_1", 0.030, 0.010, 1.5e6, 75.0),
                 RigElement("transducer", 0.0145, 0.010, 2.5e6, 75.0),
                 RigElement("flange_group_2", 0.020, 0.010, 1.5e6, 75.0),
