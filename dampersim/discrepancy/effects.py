@@ -72,10 +72,16 @@ EFFECTS = {
             "Shorter inner-of-pair springs in some nested pairs: a third stiffness stage",
             "In some nested pairs the inner spring is shorter than its slot ([thesis] §5.1, "
             "the smaller damper), so it only starts to carry torque once the inner set has "
-            "wound up by the clearance: the inner set stiffens in a third stage.",
-            "Above the clearance windup (high mean torque): the damper is stiffer, output "
-            "order amplitudes rise and resonances move up; hysteresis loops show a third "
-            "slope at high torque; no change at low torque.",
+            "wound up by the clearance. Until then those pairs work with their outer spring "
+            "alone: the inner set's first stage is softer than with full-length pairs, and it "
+            "stiffens in a third stage beyond the clearance.",
+            "Changes at low torque too: below the clearance windup the inner set is softer "
+            "than with full-length pairs only (with the defaults, 2 of 5 pairs short: 1920 "
+            "instead of 2400 N m/rad), so it winds up more and its resonances move down. "
+            "Above the clearance (high mean torque) the short springs join and the set "
+            "stiffens by count x stiffness (back to 2400 N m/rad with the default 240 N m/rad, "
+            "stiffer than full-length pairs with a stiffer short spring): resonances move up "
+            "again; hysteresis loops show a third slope at high torque.",
         ),
         EffectInfo(
             "turbine_drag", m.TurbineDrag, "coefficient", True, (1.5, 3.0, 6.0),

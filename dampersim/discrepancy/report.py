@@ -28,7 +28,8 @@ def diagnosis_from_document(doc: dict) -> SimpleNamespace:
     """A diagnosis document (or the ``diagnose --json`` output) -> an object with the
     attributes the figure builders of :mod:`dampersim.plotting.discrepancy` read.
     Missing numbers become NaN; a document without ``points``/``residuals`` (the CLI's)
-    gives empty ones."""
+    gives empty ones, one without ``message``/``missing`` (from before they existed)
+    "" and []."""
     if not isinstance(doc, dict) or "verdict" not in doc:
         raise InputError("a diagnosis document: accepted is the JSON of Diagnosis.to_json() (with a 'verdict')")
     d = dict(doc)
@@ -42,6 +43,8 @@ def diagnosis_from_document(doc: dict) -> SimpleNamespace:
     d["residuals"] = {k: dict(v) for k, v in (d.get("residuals") or {}).items()}
     d.setdefault("locate", {})
     d.setdefault("problems", [])
+    d["message"] = d.get("message") or ""
+    d["missing"] = list(d.get("missing") or [])
     return SimpleNamespace(**d)
 
 
@@ -67,15 +70,24 @@ def ranking_rows(doc: dict) -> list:
     units), held-out gap [N m], improvement over the calibrated model [%], complexity
     penalty [N m] (score minus gap), score [N m], training fit and screen fit [N m], and
     the starting point the effect was fitted from ("calibrated" or "estimated"
-    parameters; None in documents from before that choice existed)."""
+    parameters; None in documents from before that choice existed).
+
+    A candidate left unranked because its model runs failed has ``excluded`` (the
+    reason, which also stands in its ``parameters`` text: it has no gap) and
+    ``failed_points`` (ids of the points where a run with it failed); ``excluded`` is
+    None for the others."""
     rows = []
     for i, r in enumerate(doc.get("ranking") or [], start=1):
         gap, score = r.get("gap_held_out_nm"), r.get("score")
         imp = r.get("improvement")
+        excluded = r.get("excluded") or None
+        fitted = effect_parameter_text(r.get("effect"), r.get("parameters") or {})
         rows.append({
             "rank": i,
             "effect": r.get("effect"),
-            "parameters": effect_parameter_text(r.get("effect"), r.get("parameters") or {}) or "screened out",
+            "parameters": excluded or fitted or "screened out",
+            "excluded": excluded,
+            "failed_points": list(r.get("failed_points") or []),
             "gap_held_out_nm": gap,
             "improvement_pct": None if imp is None else 100.0 * imp,
             "penalty_nm": None if gap is None or score is None else score - gap,
@@ -88,14 +100,43 @@ def ranking_rows(doc: dict) -> list:
     return rows
 
 
+def excluded_text(doc: dict) -> str:
+    """" Not ranked because their model runs failed: a, b (see the ranking)." for the
+    candidates of a diagnosis document that were left unranked, or ""."""
+    names = [r.get("effect") for r in doc.get("ranking") or [] if r.get("excluded")]
+    return f" Not ranked because their model runs failed: {', '.join(names)} (see the ranking)." if names else ""
+
+
+def _sentence(text: str) -> str:
+    """``text`` with its first letter in upper case."""
+    return text[:1].upper() + text[1:]
+
+
 def verdict_summary(doc: dict) -> dict:
     """What a diagnosis document concludes, in words: {"verdict", "level" (notice level),
     "headline", "reason", "effect" (registry description or None), "parameters" (text with
-    units), "collapses_on"}. The thresholds are those of :mod:`dampersim.discrepancy.diagnose`."""
+    units), "collapses_on", "collapse_eta2", "missing"}. The thresholds are those of
+    :mod:`dampersim.discrepancy.diagnose`. For a campaign that could not be diagnosed
+    (verdict ``insufficient_data``) the reason is the document's ``message`` (what the
+    campaign lacks and what is accepted) and ``missing`` lists what it lacks."""
     def nm(v):
         return "—" if v is None else f"{float(v):.3g} N m"
 
     verdict, effect = doc.get("verdict"), doc.get("effect")
+    if verdict == dg.INSUFFICIENT:
+        missing = list(doc.get("missing") or [])
+        return {
+            "verdict": verdict,
+            "level": "error",
+            "headline": "Insufficient data",
+            "reason": _sentence(doc.get("message") or "not diagnosed: the campaign lacks "
+                                + (", ".join(missing) or "data") + "."),
+            "effect": None,
+            "parameters": "",
+            "collapses_on": None,
+            "collapse_eta2": None,
+            "missing": missing,
+        }
     floor, cal, after = doc.get("noise_floor_nm"), doc.get("gap_calibrated_nm"), doc.get("gap_after_nm")
     ranked = [r for r in doc.get("ranking") or [] if r.get("gap_held_out_nm") is not None]
     if verdict == "missing_effect":
@@ -114,6 +155,7 @@ def verdict_summary(doc: dict) -> dict:
                       f"the best, {best['effect']}, leaves {nm(best['gap_held_out_nm'])} (a named effect must cut the gap by "
                       f"at least {100 * dg.MIN_IMPROVEMENT:.0f} % and leave it within {dg.FLOOR_FACTOR_UNEXPLAINED:g}x the floor)."
                       if best else "no candidate could be fitted."))
+    reason += excluded_text(doc)
     axes = (doc.get("locate") or {}).get("axes") or {}
     where = (doc.get("locate") or {}).get("collapses_on")
     return {
@@ -125,6 +167,7 @@ def verdict_summary(doc: dict) -> dict:
         "parameters": effect_parameter_text(effect, doc.get("effect_parameters") or {}) if effect else "",
         "collapses_on": where,
         "collapse_eta2": (axes.get(where) or {}).get("eta2") if where else None,
+        "missing": [],
     }
 
 
@@ -134,5 +177,6 @@ __all__ = [
     "has_point_data",
     "effect_parameter_text",
     "ranking_rows",
+    "excluded_text",
     "verdict_summary",
 ]

@@ -145,25 +145,57 @@ def held_out_overlay_figure(diag, title: str | None = "Held-out points: measured
     return theme.apply(fig, title, height=max(360, 300 * rows))
 
 
+def _finite(v) -> bool:
+    return v is not None and bool(np.isfinite(v))
+
+
 def report_html(diag, campaign_name: str = "") -> str:
-    """A self-contained HTML report (plotly.js from the CDN)."""
-    parts = [f"<h1>Discrepancy report {html.escape(campaign_name)}</h1>",
-             f"<p><b>Verdict:</b> {html.escape(diag.verdict)}"
-             + (f" &mdash; <b>{html.escape(diag.effect)}</b> {html.escape(str(diag.effect_parameters))}" if diag.effect else "")
-             + "</p>",
-             f"<p>Noise floor {diag.noise_floor_nm:.3f} N m; held-out gap: as given {diag.gap_before_nm:.3f}, "
-             f"calibrated {diag.gap_calibrated_nm:.3f}, augmented {diag.gap_after_nm:.3f} N m "
-             f"({len(diag.held_out_points)} held-out points).</p>",
-             f"<p>Residual collapses on: {html.escape(str(diag.locate.get('collapses_on', '')))}</p>"]
+    """A self-contained HTML report (plotly.js from the CDN) of a Diagnosis (or of a
+    document read by :func:`dampersim.discrepancy.report.diagnosis_from_document`).
+
+    It states the verdict and its message, the gaps, the candidates left unranked because
+    their model runs failed, and the campaign's problems. A campaign that could not be
+    diagnosed (verdict ``insufficient_data``: no test points, no numbers) gives the verdict
+    and what the campaign lacks, without figures; the gap and ranking figures need the
+    gaps, the per-point figures the per-point data."""
+    esc = html.escape
+    message = getattr(diag, "message", "") or ""
+    missing = list(getattr(diag, "missing", None) or [])
+    locate = getattr(diag, "locate", None) or {}
+    points = list(getattr(diag, "points", None) or [])
+    residuals = getattr(diag, "residuals", None) or {}
+    parts = [f"<h1>Discrepancy report {esc(campaign_name)}</h1>",
+             f"<p><b>Verdict:</b> {esc(str(diag.verdict))}"
+             + (f" &mdash; <b>{esc(diag.effect)}</b> {esc(str(diag.effect_parameters))}" if diag.effect else "")
+             + "</p>"]
+    if message:
+        parts.append(f"<p>{esc(message)}</p>")
+    if missing:
+        parts.append(f"<p><b>Missing:</b> {esc(', '.join(missing))}</p>")
+    gaps = _finite(diag.noise_floor_nm)
+    if gaps:
+        parts.append(f"<p>Noise floor {diag.noise_floor_nm:.3f} N m; held-out gap: as given {diag.gap_before_nm:.3f}, "
+                     f"calibrated {diag.gap_calibrated_nm:.3f}, augmented {diag.gap_after_nm:.3f} N m "
+                     f"({len(diag.held_out_points)} held-out points).</p>")
+    if locate.get("collapses_on"):
+        parts.append(f"<p>Residual collapses on: {esc(str(locate['collapses_on']))}</p>")
+    excluded = [r for r in diag.ranking or [] if r.get("excluded")]
+    if excluded:
+        parts.append("<h2>Candidates not ranked</h2><ul>" + "".join(
+            f"<li>{esc(str(r['effect']))}: {esc(str(r['excluded']))}</li>" for r in excluded) + "</ul>")
     if diag.problems:
         parts.append("<h2>Campaign problems</h2><ul>" + "".join(
-            f"<li>{html.escape(q['file'])} [{html.escape(q['field'])}]: {html.escape(q['message'])}</li>" for q in diag.problems) + "</ul>")
-    figs = [gap_figure(diag), residual_map_figure(diag), order_residual_figure(diag), ranking_figure(diag)]
-    worst = max(diag.points, key=lambda p: float(np.sum(np.square(diag.residuals["calibrated"][p["id"]]))))
-    figs.append(overlay_figure(diag, worst["id"]))
+            f"<li>{esc(str(q.get('file')))} [{esc(str(q.get('field')))}]: {esc(str(q.get('message')))}</li>"
+            for q in diag.problems) + "</ul>")
+    figs = [gap_figure(diag), ranking_figure(diag)] if gaps else []
+    if points and all(s in residuals for s in STAGES):
+        worst = max(points, key=lambda p: float(np.sum(np.square(residuals["calibrated"][p["id"]]))))
+        figs[1:1] = [residual_map_figure(diag), order_residual_figure(diag)]
+        figs.append(overlay_figure(diag, worst["id"]))
     for i, f in enumerate(figs):
         parts.append(f.to_html(full_html=False, include_plotlyjs="cdn" if i == 0 else False))
-    return "<!doctype html><html><head><meta charset='utf-8'><title>dampersim discrepancy</title></head><body>" + "\n".join(parts) + "</body></html>"
+    return ("<!doctype html><html><head><meta charset='utf-8'><title>dampersim discrepancy</title></head><body>"
+            + "\n".join(parts) + "</body></html>")
 
 
 __all__ = ["gap_figure", "residual_map_figure", "order_residual_figure", "ranking_figure", "overlay_figure",
