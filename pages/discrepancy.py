@@ -33,7 +33,6 @@ from dampersim.errors import DampersimError, InputError
 from dampersim.incidents import public_message
 from dampersim.views.discrepancy import (
     CAMPAIGN_ACCEPTED,
-    MIN_TORSIONAL_POINTS,
     UPLOAD_PREFIX,
     campaign_summary,
     diagnosis_admission,
@@ -43,6 +42,7 @@ from dampersim.views.discrepancy import (
     discrepancy_value,
     discrepancy_view,
     example_campaigns,
+    not_ready_text,
     parse_discrepancy_query,
     unpack_campaign_zip,
     upload_in_use,
@@ -292,7 +292,8 @@ def create_campaign_cb(n_clicks, staged, rows, options):
 
 
 def report(summary: dict):
-    """The validation report of a campaign (see campaign_summary) as page content."""
+    """The validation report of a campaign (see campaign_summary) as page content; a
+    campaign the diagnosis cannot take says what it lacks and what is accepted."""
     if summary.get("error"):
         return W.render_notices([notice(f"This campaign cannot be read: {public_message(InputError(summary['error']))}. "
                                         f"Accepted is {CAMPAIGN_ACCEPTED}.", "error")])
@@ -306,8 +307,7 @@ def report(summary: dict):
     else:
         notes.append(notice("No problems found.", "success"))
     if not summary["ready"]:
-        notes.append(notice(f"Only {summary['torsional']} valid torsional test point(s): the diagnosis needs at least "
-                            f"{MIN_TORSIONAL_POINTS}.", "error"))
+        notes.append(notice(f"This campaign cannot be diagnosed: {not_ready_text(summary)}", "error"))
     out = [head, *W.render_notices(notes)]
     if summary["problems"]:
         out.append(W.table([("file", "File"), ("field", "Field"), ("point", "Point"), ("message", "Problem")],
@@ -436,10 +436,10 @@ def request(run, initial, values, base_params, autorun):
         out["notices"] = notices + [notice(f"This campaign cannot be diagnosed: {public_message(exc)}", "error")]
         out["status"] = "Not started."
         return out
-    if not summary["ready"]:
+    if not summary["ready"]:  # the diagnosis's own rule: it would end in insufficient_data
         out["status"] = W.render_notices([notice(
-            f"This campaign cannot be diagnosed: {summary['torsional']} valid torsional test point(s), at least "
-            f"{MIN_TORSIONAL_POINTS} are needed (see the validation report).", "error")])
+            f"This campaign cannot be diagnosed: {not_ready_text(summary)} Nothing was run (see the validation report).",
+            "error")])
         return out
     by_link = bool(initial and autorun and not run)
     rule, text = diagnosis_admission(summary, started_by_link=by_link)
@@ -465,9 +465,11 @@ GONE_TEXT = "the campaign is no longer on this server (upload it again)"
 def checked_job_state(job_data) -> tuple:
     """(state, folder, summary) of a diagnosis job's request, validated again like a link
     (the page's equivalent of :func:`pages._jobs.checked_job_state`): the state must name
-    a bundled example or an upload still on this server, resolve to itself, and hold
-    enough valid torsional points. Raises InputError naming what is refused, before any
-    work; the budget is checked by :func:`job` on the campaign read here."""
+    a bundled example or an upload still on this server, resolve to itself, and be
+    ready for the diagnosis (enough valid torsional points, at more than one speed: the
+    ``ready`` of :func:`dampersim.views.discrepancy.campaign_summary`). Raises InputError
+    naming what is refused, before any work; the budget is checked by :func:`job` on the
+    campaign read here."""
     raw = job_data.get("state") if isinstance(job_data, dict) else None
     if not isinstance(raw, dict):
         raise InputError(f"the request names no campaign (state = {type(raw).__name__}); accepted is a state with "
@@ -480,8 +482,7 @@ def checked_job_state(job_data) -> tuple:
         raise InputError(GONE_TEXT)
     summary = campaign_summary(folder)
     if not summary["ready"]:
-        raise InputError(f"{summary['torsional']} valid torsional test point(s) in this campaign; the diagnosis needs "
-                         f"at least {MIN_TORSIONAL_POINTS} (see the validation report)")
+        raise InputError(f"this campaign cannot be diagnosed: {not_ready_text(summary)} See the validation report.")
     return state, folder, summary
 
 

@@ -29,7 +29,7 @@ from urllib.parse import quote
 
 from dampersim.discrepancy import upload
 from dampersim.discrepancy.campaign import MANIFEST, read_campaign
-from dampersim.discrepancy.diagnose import MIN_TORSIONAL_POINTS, diagnose
+from dampersim.discrepancy.diagnose import INSUFFICIENT, MIN_TORSIONAL_POINTS, diagnose, shortfall
 from dampersim.discrepancy.drive import Runner
 from dampersim.discrepancy.report import (
     diagnosis_document,
@@ -51,8 +51,9 @@ UPLOADS_SUBDIR = "uploads"
 #: Keyword arguments of :func:`dampersim.discrepancy.diagnose.diagnose` used by the
 #: dashboard (empty: the library's defaults); part of the cache key.
 DISCREPANCY_OPTIONS: dict = {}
-#: Bumped when the content of a cached diagnosis view changes shape.
-DISCREPANCY_FORMAT = 1
+#: Bumped when the content of a cached diagnosis view changes shape (2: the campaign
+#: summary says what a campaign lacks, ``missing`` and ``message``).
+DISCREPANCY_FORMAT = 2
 #: Default example campaign of the page (the first bundled one if it is missing).
 DEFAULT_EXAMPLE = "hidden-effect-example"
 #: Rough cost of the diagnosis [core seconds per second of torsional record], measured
@@ -208,14 +209,29 @@ def discrepancy_folder(state: dict, examples: dict):
 
 def summarise_campaign(camp) -> dict:
     """Validation report of a campaign already read (a
-    :class:`dampersim.discrepancy.campaign.Campaign`), JSON-ready: see :func:`campaign_summary`."""
+    :class:`dampersim.discrepancy.campaign.Campaign`), JSON-ready: see :func:`campaign_summary`.
+    Whether it can be diagnosed is the diagnosis's own rule,
+    :func:`dampersim.discrepancy.diagnose.shortfall` (enough valid torsional points, at more
+    than one speed), so the page never starts a diagnosis that would end in
+    ``insufficient_data`` for the campaign's shape."""
     rep = camp.report()
+    missing, message = shortfall(camp.torsional, len(camp.ramps))
     return {"name": camp.name, "description": camp.description, "rows": rep["rows"], "valid": len(camp.points),
             "torsional": len(camp.torsional), "ramps": len(camp.ramps),
             "record_s": float(sum(p.duration for p in camp.torsional)),
             "longest_s": float(max((p.duration for p in camp.torsional), default=0.0)),
             "ramp_s": float(max((p.duration for p in camp.ramps), default=0.0)),
-            "problems": rep["problems"], "error": None, "ready": len(camp.torsional) >= MIN_TORSIONAL_POINTS}
+            "problems": rep["problems"], "error": None, "ready": not missing, "missing": missing,
+            "message": message}
+
+
+def not_ready_text(summary: dict) -> str:
+    """What a campaign that is not ready for the diagnosis (its :func:`campaign_summary`)
+    lacks and what is accepted, to follow a colon: the message of
+    :func:`dampersim.discrepancy.diagnose.shortfall` without its "not diagnosed: " lead."""
+    text = summary.get("message") or (f"{summary.get('torsional', 0)} valid torsional test point(s) are not enough "
+                                      "for a diagnosis.")
+    return text.removeprefix("not diagnosed: ")
 
 
 def _folder_files(folder: Path) -> tuple:
@@ -240,7 +256,9 @@ def campaign_summary(folder) -> dict:
 
     {"name", "description", "rows", "valid", "torsional", "ramps", "record_s", "problems"
     (each with file, field, point, message), "error" (a campaign that cannot be read at
-    all) and "ready" (enough valid torsional points for the diagnosis)}. Paths in messages
+    all), "ready" (the diagnosis can run: enough valid torsional points, at more than one
+    speed), "missing" (what it lacks: "torsional_points", "speeds"; empty when ready) and
+    "message" (what it lacks and what is accepted, in words; "" when ready)}. Paths in messages
     are relative to the campaign folder (the server's folders are not shown). Memoised
     per process on the folder and the size and modification time of its files.
     """
@@ -256,7 +274,7 @@ def _campaign_summary(folder: str, _files: tuple) -> dict:
     except InputError as exc:
         msg = str(exc).replace(str(folder) + os.sep, "").replace(str(folder), folder.name)
         return {"name": folder.name, "description": "", "rows": 0, "valid": 0, "torsional": 0, "ramps": 0,
-                "record_s": 0.0, "problems": [], "error": msg, "ready": False}
+                "record_s": 0.0, "problems": [], "error": msg, "ready": False, "missing": [], "message": ""}
     return summarise_campaign(camp)
 
 
@@ -323,7 +341,11 @@ def discrepancy_key(folder, system=None) -> str:
 
 def discrepancy_figures(doc: dict) -> dict:
     """Figures (plain dicts) of a diagnosis document: ``gap``, ``ranking`` and, when the
-    document holds per-point data, ``map``, ``profile`` and ``overlays`` (else None)."""
+    document holds per-point data, ``map``, ``profile`` and ``overlays`` (else None).
+    A campaign that could not be diagnosed (``insufficient_data``) has no numbers to draw:
+    every figure is None."""
+    if doc.get("verdict") == INSUFFICIENT:
+        return dict.fromkeys(("gap", "ranking", "map", "profile", "overlays"))
     d = diagnosis_from_document(doc)
     gap = diagnosis_plots.gap_figure(d, None)
     ranking = diagnosis_plots.ranking_figure(d, None)
@@ -345,8 +367,13 @@ def discrepancy_view(folder, progress=None, cache_only: bool = False, workers=No
 
     Returns {"key", "campaign" (see :func:`campaign_summary`), "diagnosis" (see
     :func:`dampersim.discrepancy.report.diagnosis_document`), "summary"} or, with
-    ``cache_only``, None on a miss. ``progress(fraction, text)`` is passed to the diagnosis. Raises InputError for a
-    campaign that cannot be diagnosed.
+    ``cache_only``, None on a miss. ``progress(fraction, text)`` is passed to the diagnosis.
+    A campaign that cannot be diagnosed (too few valid torsional points, all at one speed,
+    or too few left once failed model runs are left out) is no error: its diagnosis has
+    the verdict ``insufficient_data``, and ``message`` and ``missing`` say what it lacks.
+    The page checks the campaign's shape first (``ready`` of :func:`campaign_summary`) and
+    does not start such a diagnosis. Raises InputError only for a campaign that cannot be
+    read.
     """
     if cache_only:
         return None
@@ -382,6 +409,7 @@ __all__ = [
     "discrepancy_folder",
     "summarise_campaign",
     "campaign_summary",
+    "not_ready_text",
     "diagnosis_seconds",
     "diagnosis_admission",
     "upload_in_use",
