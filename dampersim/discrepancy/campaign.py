@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dampersim.analysis.ordertrack import check_speed
 from dampersim.errors import InputError
 
 MANIFEST = "manifest.csv"
@@ -558,6 +559,10 @@ def _read_point(fpath, rel, pid, kind, rpm, tq, fs):
             probs.append(Problem(rel, "time_s", f"record of {dur:.3g} s is too short for the order analysis (need >= {need_s:.3g} s)", pid))
         if fs < 2.2 * 8 * rpm / 60.0:
             probs.append(Problem(rel, "sample_rate_hz", f"{fs:g} Hz cannot resolve order 8 at {rpm:g} rpm", pid))
+        try:  # the orders are tracked on this channel (dampersim.discrepancy.tracking)
+            check_speed(arrays["input_speed_rpm"] * (math.pi / 30.0), "input_speed_rpm")
+        except InputError as exc:
+            probs.append(Problem(rel, "input_speed_rpm", str(exc), pid))
         mean_in = float(np.mean(arrays["input_torque_nm"]))
         tol = max(TORQUE_TOLERANCE[0] * abs(tq), TORQUE_TOLERANCE[1])
         if abs(mean_in - tq) > tol:

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dampersim.discrepancy import tracking
 from dampersim.excitation import MeasuredTorque
-from dampersim.signal import lowpass_first_order, order_amplitudes
+from dampersim.signal import lowpass_first_order
 from dampersim.simulation import simulate
 from dampersim.solver.linear import max_stable_time_step
 from dampersim import jobs
@@ -58,8 +59,9 @@ def diagnosis_system(system):
 
 
 def measured_orders(point) -> np.ndarray:
-    """Output order amplitudes [N m] of a measured torsional point (whole record)."""
-    return order_amplitudes(point.output_torque, point.sample_rate_hz, point.speed, ORDERS)
+    """Output order amplitudes [N m] of a measured torsional point (whole record), tracked on
+    its measured input speed (:mod:`dampersim.discrepancy.tracking`)."""
+    return tracking.point_orders(point, point.output_torque, ORDERS)
 
 
 def split_half_spread(point) -> np.ndarray:
@@ -74,13 +76,12 @@ def split_half_spread(point) -> np.ndarray:
     amplitude modulation as noise, which the driven model reproduces.
     """
     n = len(point.output_torque) // 2
-    fs = point.sample_rate_hz
     halves = []
     for sl in (slice(0, n), slice(n, 2 * n)):
-        halves.append((order_amplitudes(point.input_torque[sl], fs, point.speed, ORDERS),
-                       order_amplitudes(point.output_torque[sl], fs, point.speed, ORDERS)))
+        halves.append((tracking.point_orders(point, point.input_torque, ORDERS, sl),
+                       tracking.point_orders(point, point.output_torque, ORDERS, sl)))
     (i1, o1), (i2, o2) = halves
-    a_in = order_amplitudes(point.input_torque[:2 * n], fs, point.speed, ORDERS)
+    a_in = tracking.point_orders(point, point.input_torque, ORDERS, slice(0, 2 * n))
     driven = a_in >= 0.01 * max(float(a_in.max()), 1e-12)
     with np.errstate(divide="ignore", invalid="ignore"):
         mr_spread = 0.5 * np.abs(o1 / i1 - o2 / i2) * a_in
@@ -90,15 +91,15 @@ def split_half_spread(point) -> np.ndarray:
 def simulate_point(system, point) -> dict:
     """Simulate one measured point with ``system``.
 
-    torsional: {"orders": output order amplitudes [N m] over the record's length};
+    torsional: {"orders": output order amplitudes [N m] over the record's revolutions, read
+    on the record's measured angle like the measured output (:func:`tracking.driven_orders`)};
     ramp: {"torque", "windup"} on the record's time base (windup [rad]).
     """
 
     if point.kind == "torsional":
         ex = MeasuredTorque(point.speed, point.time, point.input_torque)
         res = simulate(system, ex, record_segments=False)
-        w = res.window(point.duration)
-        return {"orders": order_amplitudes(res.output_torque[w], res.sample_rate, point.speed, ORDERS)}
+        return {"orders": tracking.driven_orders(point, res, ex.steady_start, ORDERS)}
     ex = RecordedRamp(point.speed, point.time, point.input_torque)
     res = simulate(system, ex, record_segments=False)
     wind = np.interp(point.time, res.t, res.windup_total)
