@@ -5,6 +5,13 @@ M, C, K, the static curve, convergence in time step and segment count, and speed
 stiffening of the outer set.
 
     python bench/bench_accuracy.py      # about 1 min on 2 cores
+
+The accuracy grid (bench/accuracy_grid.py: 32 test points, each order against a 1e-6 s
+or 32/12-segment reference, tolerance 1 % / 2 % or twice the order's physical spread):
+
+    python bench/bench_accuracy.py --grid step                  # default step (~15 min first time)
+    python bench/bench_accuracy.py --grid step --steps 2e-5,1/60000
+    python bench/bench_accuracy.py --grid segments --segments 18/8,24/10
 """
 
 from __future__ import annotations
@@ -26,6 +33,31 @@ P = ds.default_parameters()
 def order2(system, rpm):
     ex = ds.OrderSum(speed=rpm_to_rad_s(rpm), mean_torque=200.0, orders=((2, 300.0, 0.0),))
     return ds.simulate(system, ex, record_segments=False).order_amplitudes()[1][1]
+
+
+def grid(kind, candidates, workers):
+    """Print the accuracy grid for each candidate (a time step [s] or 'outer/inner' segment
+    counts) and a summary line per candidate."""
+    import accuracy_grid as ag
+
+    ref_out, spread = ag.references(P, kind, workers)
+    limit = 1.0 if kind == "step" else 2.0
+    for cand in candidates:
+        if kind == "step":
+            system = with_updates(P, {"solver.time_step": cand})
+            label = f"time step {cand:.6g} s"
+        else:
+            no, ni = cand
+            system = with_updates(P, {"solver.outer_segments": no, "solver.inner_segments": ni})
+            label = f"segments {no}/{ni}"
+        err, ok, allowed = ag.errors(system, ref_out, spread, limit, workers)
+        print(f"--- {label} against {'a 1e-6 s' if kind == 'step' else 'a 32/12-segment'} reference")
+        for row in ag.table(err, spread, ok, allowed):
+            print(row)
+        judged = ~np.isnan(err)
+        worst = np.nanmax(np.abs(err) - allowed)
+        print(f"=== {label}: {int(ok[judged].sum())}/{int(judged.sum())} judged orders pass; "
+              f"largest excess over the allowed error {worst:+.2f} points", flush=True)
 
 
 def main():
@@ -79,5 +111,32 @@ def main():
           f"segments {comp_a[:5].sum() / comp_a.sum():.3f} -> {comp_b[:5].sum() / comp_b.sum():.3f}")
 
 
+def _step(text):
+    """A time step [s] written as a number or a quotient 'a/b'."""
+    num, _, den = text.partition("/")
+    return float(num) / float(den) if den else float(num)
+
+
+def _cli():
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--grid", choices=("step", "segments"), help="run the accuracy grid instead")
+    ap.add_argument("--steps", default=None, help="candidate steps [s], comma-separated (a/b allowed)")
+    ap.add_argument("--segments", default=None, help="candidate 'outer/inner' segment counts, comma-separated")
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args()
+    if a.grid is None:
+        main()
+        return
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    if a.grid == "step":
+        cands = [P.solver.time_step] if a.steps is None else [_step(x) for x in a.steps.split(",")]
+    else:
+        raw = a.segments or f"{P.solver.outer_segments}/{P.solver.inner_segments}"
+        cands = [tuple(int(n) for n in x.split("/")) for x in raw.split(",")]
+    grid(a.grid, cands, a.workers)
+
+
 if __name__ == "__main__":
-    main()
+    _cli()

@@ -160,6 +160,13 @@ class Solver:
     duration: float = param("s", "simulated time", 0.01, 600.0, default=2.6)
     output_sample_rate: float = param("Hz", "sample rate of the stored time series", 100.0, 1.0e6, default=10000.0)
     segment_sample_rate: float = param("Hz", "sample rate of the stored per-segment states", 1.0, 1.0e5, default=1000.0)
+    friction_scheme: str = field(default="fitted", metadata={
+        "doc": "where the implicit friction step applies the law: 'fitted' (exponentially fitted weight, "
+               "L-stable), 'backward-euler' or 'trapezoidal' (A-stable only; rings on stiff contacts)"})
+    friction_tolerance: float = param("-", "Newton tolerance of the friction law, in units of the friction coefficient",
+                                      1.0e-9, 0.1, default=1.0e-2)
+    friction_iterations: int = param("-", "Newton re-solves of the friction step before the law is applied "
+                                     "explicitly at the last iterate", 0, 20, default=8, kind=int)
 
 
 # --- candidate effects of the discrepancy workflow (all off by default) ----------------

@@ -200,6 +200,9 @@ def validate(system: m.DamperSystem) -> m.DamperSystem:
         raise ParameterError("rig.output_transducer", system.rig.output_transducer, f"one of {names[:-1]} (not the motor)")
     if system.motor.mode not in ("pi", "held"):
         raise ParameterError("motor.mode", system.motor.mode, "'pi' or 'held'")
+    if system.solver.friction_scheme not in ("fitted", "backward-euler", "trapezoidal"):
+        raise ParameterError("solver.friction_scheme", system.solver.friction_scheme,
+                             "'fitted', 'backward-euler' or 'trapezoidal'")
     tb = system.effects.transducer_bandwidth
     if tb.enabled and tb.cutoff >= 0.5 * system.solver.output_sample_rate:
         raise ParameterError(

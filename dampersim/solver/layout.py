@@ -74,7 +74,13 @@ P_PA_DOF = 32  # DOF index of the pendulum absorber (-1: none)
 P_PA_K = 33  # pendulum restoring stiffness J_a (n Omega0)^2 [N m/rad]
 P_PA_C = 34  # pendulum damping [N m s/rad]
 P_NRT = 35  # share of the nested inner spring's normal force loading the outer spring
-P_SIZE = 36
+P_FR_SCHEME = 36  # friction scheme (kernels.friction.SCHEME_*)
+P_FR_TOL = 37  # Newton tolerance of the friction law [-] (friction coefficient units)
+P_FR_ITER = 38  # Newton re-solves of the friction step
+P_SIZE = 39
+
+#: solver.friction_scheme names -> P[P_FR_SCHEME] codes (kernels.friction.SCHEME_*)
+FRICTION_SCHEMES = {"trapezoidal": 0, "backward-euler": 1, "fitted": 2}
 
 # --- spring table SF (float) and SI (int), one row per integrated spring --------------
 F_KSEG = 0  # segment stiffness k_seg = N k_spring [N m/rad]
@@ -287,6 +293,9 @@ def build_layout(system: DamperSystem, omega0: float) -> Layout:
     P[P_MOTOR] = motor
     P[P_INPUT] = input_dof
     P[P_PA_DOF] = pa_dof
+    P[P_FR_SCHEME] = FRICTION_SCHEMES[s.solver.friction_scheme]
+    P[P_FR_TOL] = s.solver.friction_tolerance
+    P[P_FR_ITER] = s.solver.friction_iterations
     _effect_slots(s, omega0, P)
     return Layout(
         P=P,

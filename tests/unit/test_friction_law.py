@@ -71,9 +71,10 @@ def test_contact_loop_equals_scalar_law():
     P = np.zeros(L.P_SIZE)
     P[L.P_G1:L.P_G6 + 1] = THESIS
     npad = (nc + 7) // 8 * 8
-    XS, MU, DMU = np.zeros(npad), np.zeros(npad), np.zeros(npad)
+    XS, MU, DMU, TH = np.full(npad, np.nan), np.zeros(npad), np.zeros(npad), np.zeros(npad)
     W = np.zeros(2 * nc)
-    friction.contact_laws(v0, v0, FN, P, CI, CF, W, XS, MU, DMU)
+    invj = np.full(nc + 1, 100.0)
+    friction.contact_laws(v0, v0, FN, P, CI, CF, invj, 1.0 / 60000.0, W, XS, MU, DMU, TH)
     for c in range(nc):
         mu, dmu = exact(float((v0[CI[c, 0]] - v0[CI[c, 1]]) * CF[c, 1]), THESIS)
         assert MU[c] == pytest.approx(mu, rel=1e-13, abs=1e-15)

@@ -177,6 +177,12 @@ ORIGINS = {
     "it resolves the 8th order at 2800 rpm (373 Hz) many times over",
     "solver.segment_sample_rate": "estimate: 1 kHz shows the segment motion up to 500 Hz (above the 6th order at "
     "2800 rpm) while the segment record stays a tenth of the time series",
+    "solver.friction_scheme": "model: the exponentially fitted implicit friction step, chosen by measurement "
+    "against backward Euler and the trapezoidal rule (docs/model.md §12)",
+    "solver.friction_tolerance": "model: 0.01 of the friction coefficient (3 % of the law's 0.35 peak): a "
+    "tighter value re-solves several times more steps without moving the accuracy grid (docs/model.md §12)",
+    "solver.friction_iterations": "model: up to eight Newton re-solves (none of the test points of "
+    "docs/model.md §12 needed more than four), then the law's own torque at the last iterate",
     # --- optional effects (all off; docs/model.md §11 and dampersim.discrepancy.effects)
     "effects.clutch_slip.enabled": "model: off, the thesis assumes a locked clutch without slip ([thesis] §5.1); "
     "a candidate effect of the discrepancy workflow (docs/model.md §11)",

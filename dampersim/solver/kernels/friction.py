@@ -14,9 +14,12 @@ from numba import njit
 
 from dampersim.solver.kernels import JIT, LEAF
 from dampersim.solver.kernels.fastmath import expm1_neg, fast_tanh
-from dampersim.solver.layout import P_G1, P_G2, P_G3, P_G4, P_G5, P_G6
+from dampersim.solver.layout import P_FR_ITER, P_FR_SCHEME, P_FR_TOL, P_G1, P_G2, P_G3, P_G4, P_G5, P_G6
 
-THETA = 0.5  # the friction law is applied at the step's midpoint slip (see _linear_law)
+#: friction schemes (P[P_FR_SCHEME]): where in the step the linearised law is applied
+SCHEME_TRAPEZOIDAL = 0  # at the midpoint slip, theta = 1/2 (A-stable only: rings when stiff)
+SCHEME_BACKWARD_EULER = 1  # at the end-of-step slip, theta = 1 (L-stable, first order)
+SCHEME_FITTED = 2  # exponentially fitted theta(z): 1/2 + z/12 when soft, -> 1 when stiff
 
 
 
@@ -75,36 +78,95 @@ def friction_torques(v, P, J, CI, CF, FN, TF):
 
 
 @njit(inline="always", **JIT)
-def _linear_law(c, mu, dmu, v, v0, FN, CI, CF, W):
+def fitted_theta(z):
+    """Weight theta of the end-of-step slip for a contact of stiffness ratio z [-].
+
+    theta(z) = 1/(1 - exp(-z)) - 1/z makes the theta-method's amplification factor
+    (1 - (1 - theta) z) / (1 + theta z) equal to exp(-z), the exact decay of a stuck
+    contact's linearised slip over the step: 1/2 + z/12 for small z (second order),
+    tending to 1 as z grows (L-stable: the factor tends to 0, never negative).
+    Branch-free select between the series (z < 0.05, truncation < 1e-11) and the closed
+    form (no cancellation above 0.05)."""
+    zb = max(z, 0.05)
+    big = -1.0 / expm1_neg(zb) - 1.0 / zb
+    small = 0.5 + z * (1.0 / 12.0) - z * z * z * (1.0 / 720.0)
+    return small if z < 0.05 else big
+
+
+@njit(inline="always", **JIT)
+def _linear_law(c, mu, dmu, th, s_lin, x_eval, safe, FN, CI, CF, W):
     """Linearised friction torque of contact c into W: T = W[2c] + W[2c+1] * s, with s the
-    end-of-step slip [rad/s]. The law (mu, dmu) is taken at the start-of-step slip s0 and
-    applied at the step's midpoint slip (s0 + s)/2 (second order, A-stable); a negative
-    slope (Stribeck branch) is applied explicitly at the current slip."""
+    end-of-step slip [rad/s].
+
+    The law (mu, dmu) is taken at the slip x_eval [m/s] = r ((1 - th) s0 + th s_lin)
+    (s0: start of step, s_lin: the current estimate of the end-of-step slip) and
+    applied at (1 - th) s0 + th s: the line passes through the law's value there with
+    slope th * m in s. First solve (``safe`` false): m = max(dmu, 0), the tangent, with
+    a falling (Stribeck) branch applied as a constant. Newton re-solves (``safe``):
+    m = max(dmu, mu / x_eval), at least the secant through zero slip. The regularised
+    law is concave in |v| wherever it matters, so a pure tangent step can overshoot
+    from a far slip to the other side and oscillate there (a mass caught by friction
+    within one step); the secant bound makes every iterate approach the solution from
+    one side (Kacanov's iteration), and near zero slip the two coincide."""
     a = np.uintp(CI[c, 0])  # unsigned: no negative-index wraparound (see forces)
-    b = np.uintp(CI[c, 1])
     r = CF[c, 1]
     cn = CF[c, 0] * FN[a] * r
-    s0 = v0[a] - v0[b]
-    ss = v[a] - v[b]
-    qc = THETA * cn * dmu * r
-    qi = max(qc, 0.0)
-    W[2 * c] = cn * mu - qi * s0 + (qc - qi) * (ss - s0)
-    W[2 * c + 1] = qi
+    m = max(dmu, 0.0)
+    if safe and x_eval != 0.0:
+        m = max(dmu, mu / x_eval)
+    q = th * cn * m * r
+    W[2 * c] = cn * mu - q * s_lin
+    W[2 * c + 1] = q
 
 
 @njit(**LEAF)
-def contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU):
-    """Linearised friction law of every contact into W[0 : 2 n_contacts] (see
-    :func:`_linear_law`).
+def contact_laws(v, v0, FN, P, CI, CF, invj, dt, W, XS, MU, DMU, TH):
+    """Linearised friction law of every contact into W[0 : 2 n_contacts] about the
+    start-of-step slips (v0), and each contact's weight theta into TH (see
+    :func:`_linear_law`, :func:`fitted_theta`); v: the speeds after the smooth forces
+    (the predicted slips of the explicit Stribeck branch). invj: 1/J per DOF
+    [1/(kg m^2)]; dt: step [s].
 
-    XS, MU, DMU: scratch of n_contacts rounded up to a multiple of 8 (an AVX-512 register)
-    for the slips [m/s], friction coefficients and slopes. The coefficients are computed
-    in one loop over these contiguous arrays, free of calls and branches, which the
-    compiler turns into SIMD code; the padding spares it a scalar remainder loop."""
-    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
+    Scheme P[P_FR_SCHEME] (SCHEME_*): theta = 1/2, 1, or fitted to the contact's
+    stiffness ratio z = alpha F_N r^2 mu'(s0) dt (1/J_a + 1/J_b) [-], the linearised
+    slip's decay over one step with the housing side's inertia included.
+
+    XS, MU, DMU, TH: scratch of n_contacts rounded up to a multiple of 8 (an AVX-512
+    register) for the slips [m/s], friction coefficients, slopes and weights. The
+    coefficients are computed in one loop over these contiguous arrays, free of calls
+    and branches, which the compiler turns into SIMD code; the padding spares it a scalar
+    remainder loop. XS, MU, DMU hold the law at the previous step's end-of-step slips
+    (:func:`refine_laws`), which are this step's start slips unless something moved
+    the speeds in between (a coil-stacking impulse, a Newton re-solve): the law is
+    evaluated again only if some slip differs."""
+    scheme = P[P_FR_SCHEME]
     nc = CI.shape[0]
+    moved = 0
     for c in range(nc):
-        XS[c] = (v0[np.uintp(CI[c, 0])] - v0[np.uintp(CI[c, 1])]) * CF[c, 1]
+        x = (v0[np.uintp(CI[c, 0])] - v0[np.uintp(CI[c, 1])]) * CF[c, 1]
+        moved += x != XS[c]
+        XS[c] = x
+    if moved > 0:
+        _laws(XS, MU, DMU, P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6])
+    if scheme == SCHEME_FITTED:
+        for c in range(nc):
+            a = np.uintp(CI[c, 0])
+            r = CF[c, 1]
+            TH[c] = CF[c, 0] * FN[a] * r * r * max(DMU[c], 0.0) * dt * (invj[a] + invj[np.uintp(CI[c, 1])])
+        for c in range(TH.shape[0]):
+            TH[c] = fitted_theta(TH[c])
+    else:
+        th = 1.0 if scheme == SCHEME_BACKWARD_EULER else 0.5
+        for c in range(TH.shape[0]):
+            TH[c] = th
+    for c in range(nc):
+        _linear_law(c, MU[c], DMU[c], TH[c], v0[np.uintp(CI[c, 0])] - v0[np.uintp(CI[c, 1])], XS[c], False,
+                    FN, CI, CF, W)
+
+
+@njit(inline="always", **JIT)
+def _laws(XS, MU, DMU, g1, g2, g3, g4, g5, g6):
+    """Makkar coefficient and slope at every slip of XS [m/s] (padded length), SIMD."""
     if g2 == 10.0 * g3 and g5 == g2:
         for c in range(XS.shape[0]):
             mu, dmu = makkar_fast(XS[c], g1, g2, g3, g4, g6)
@@ -115,8 +177,65 @@ def contact_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU):
             mu, dmu = makkar_general(XS[c], g1, g2, g3, g4, g5, g6)
             MU[c] = mu
             DMU[c] = dmu
+
+
+@njit(**LEAF)
+def refine_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU, TH, SK, ML, tol, first, final):
+    """Newton check of a solved friction step; returns True when W was changed and the
+    step must be solved again from the same pre-friction speeds. tol: accepted error
+    of the friction coefficient [-]; SK, ML: padded scratch (solved slips [rad/s],
+    predicted coefficients [-]).
+
+    ``first`` (after the step's first solve): is the law linear over the step? The
+    start-of-step linearisation's coefficient at the solved end-of-step slip s is
+    compared with the law's there; the law at s is kept in XS/MU/DMU, where the next
+    step finds it. Later checks are Newton residuals: the law where the scheme applies
+    it, (1 - theta) s0 + theta s, against the current linearisation. If some contact is
+    off by more than tol, every contact is re-linearised about its solved slip (a Newton
+    iteration of the regularised law, with the same theta); with ``final`` the law's
+    torque at the last evaluation is applied as a constant instead (slope 0), so the
+    re-solve cannot leave the law's bounds, whatever the linearisation's error."""
+    g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
+    nc = CI.shape[0]
+    if first:
+        for c in range(nc):
+            a = np.uintp(CI[c, 0])
+            b = np.uintp(CI[c, 1])
+            r = CF[c, 1]
+            sk = v[a] - v[b]
+            SK[c] = sk
+            ML[c] = MU[c] + DMU[c] * (sk - (v0[a] - v0[b])) * r
+            XS[c] = sk * r
+    else:
+        for c in range(nc):
+            a = np.uintp(CI[c, 0])
+            b = np.uintp(CI[c, 1])
+            r = CF[c, 1]
+            sk = v[a] - v[b]
+            SK[c] = sk
+            cn = CF[c, 0] * FN[a] * r
+            ML[c] = (W[2 * c] + W[2 * c + 1] * sk) / cn if cn != 0.0 else MU[c]
+            XS[c] = ((1.0 - TH[c]) * (v0[a] - v0[b]) + TH[c] * sk) * r
+    _laws(XS, MU, DMU, g1, g2, g3, g4, g5, g6)
+    err = 0.0
     for c in range(nc):
-        _linear_law(c, MU[c], DMU[c], v, v0, FN, CI, CF, W)
+        err = max(err, abs(ML[c] - MU[c]))
+    if err <= tol:
+        return False
+    if final:
+        for c in range(nc):
+            W[2 * c] = CF[c, 0] * FN[np.uintp(CI[c, 0])] * CF[c, 1] * MU[c]
+            W[2 * c + 1] = 0.0
+        return True
+    if first:
+        # the Newton linearisation needs the law where it is applied
+        for c in range(nc):
+            a = np.uintp(CI[c, 0])
+            XS[c] = ((1.0 - TH[c]) * (v0[a] - v0[np.uintp(CI[c, 1])]) + TH[c] * SK[c]) * CF[c, 1]
+        _laws(XS, MU, DMU, g1, g2, g3, g4, g5, g6)
+    for c in range(nc):
+        _linear_law(c, MU[c], DMU[c], TH[c], SK[c], XS[c], True, FN, CI, CF, W)
+    return True
 
 
 @njit(**LEAF)
@@ -258,8 +377,42 @@ def friction_step(v, v0, J, CI, SG, PG, dt, W, HS):
         v[np.uintp(PG[k, 0])] = WP[base] + WP[base + 1] * u1 + WP[base + 2] * u2
         if PG[k, 1] >= 0:
             v[np.uintp(PG[k, 1])] = WP[base + 3] + WP[base + 4] * u1 + WP[base + 5] * u2
+    return friction_dissipation(v, CI, dt, W)
+
+
+@njit(**LEAF)
+def newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU, TH, SK, ML, stats):
+    """Newton iterations of a friction step already solved once (:func:`friction_step`
+    on the linearisation of :func:`contact_laws`); returns the step's friction
+    dissipation [J].
+
+    vb: the speeds before the friction solve, from which every re-solve restarts.
+    While :func:`refine_laws` finds the law off by more than P[P_FR_TOL] (friction
+    coefficient units), the step is re-linearised about the solved slips and solved
+    again, at most P[P_FR_ITER] times; the last resort applies the law's torque at the
+    last iterate with slope 0, so no contact ends outside the law's bounds. stats[1]
+    counts the re-solves."""
+    tol = P[P_FR_TOL]
+    maxit = int(P[P_FR_ITER])
+    ef = friction_dissipation(v, CI, dt, W)
+    for it in range(maxit + 1):
+        if not refine_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU, TH, SK, ML, tol, it == 0, it == maxit):
+            break
+        for i in range(v.shape[0]):
+            v[i] = vb[i]
+        ef = friction_step(v, v0, J, CI, SG, PG, dt, W, HS)
+        stats[1] += 1.0
+        if it == maxit:
+            stats[2] += 1.0
+    return ef
+
+
+@njit(**LEAF)
+def friction_dissipation(v, CI, dt, W):
+    """Work [J] of the linearised friction torques of W on the slips of v over a step dt
+    [s]: the dissipation :func:`friction_step` returns for the speeds it produced."""
     diss = 0.0
-    for c in range(nc):
+    for c in range(CI.shape[0]):
         s = v[np.uintp(CI[c, 0])] - v[np.uintp(CI[c, 1])]
         diss += dt * (W[2 * c] + W[2 * c + 1] * s) * s
     return diss

@@ -22,7 +22,7 @@ from dampersim.solver.kernels.contacts import hardstop_coefficients, hardstop_di
 from dampersim.solver.kernels.effects import clutch_step
 from dampersim.solver.kernels.engine import engine_diverged, engine_record, engine_step
 from dampersim.solver.kernels.forces import elastic_energy, forces
-from dampersim.solver.kernels.friction import contact_laws, friction_step
+from dampersim.solver.kernels.friction import contact_laws, friction_step, newton_friction
 from dampersim.solver.kernels.springs import spring_nodes
 from dampersim.solver.layout import (
     P_CL_ON,
@@ -59,9 +59,10 @@ from dampersim.solver.layout import (
 #: Scratch arrays of :func:`step` (all float64), made by :func:`workspace`: node
 #: coordinates X, segment torques ST, torques FC/FD/FE, normal forces FN, start-of-step
 #: speeds v0, 1/J, extrapolated speeds vx, the stacking flag, the friction solve's FW,
-#: the hardstop coefficients HS, the friction law's padded XS/MU/DMU, speeds before a
-#: hardstop re-solve vb and the stacking energy stats.
-Work = namedtuple("Work", "X ST FC FD FE FN v0 invj vx flags FW HS XS MU DMU vb stats")
+#: the hardstop coefficients HS, the friction law's padded XS/MU/DMU/TH/SK/ML, the speeds
+#: before the friction solve vb (each re-solve restarts from them) and the stacking
+#: energy stats.
+Work = namedtuple("Work", "X ST FC FD FE FN v0 invj vx flags FW HS XS MU DMU TH SK ML vb stats")
 
 
 @njit(**JIT)
@@ -84,11 +85,14 @@ def workspace(J, n_nodes, n_contacts, n_singles, n_pairs):
         np.zeros(1),
         np.zeros(2 * n_contacts + 2 * n_singles + 6 * n_pairs),
         np.zeros(4),
+        np.full(npad, np.nan),  # no law evaluated yet: the first step evaluates it
+        np.zeros(npad),
+        np.zeros(npad),
         np.zeros(npad),
         np.zeros(npad),
         np.zeros(npad),
         np.zeros(ndof),
-        np.zeros(1),
+        np.zeros(3),
     )
 
 
@@ -133,6 +137,9 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
     XS = W.XS
     MU = W.MU
     DMU = W.DMU
+    TH = W.TH
+    SK = W.SK
+    ML = W.ML
     vb = W.vb
     stats = W.stats
     z = S[S_Z]
@@ -190,18 +197,20 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
     e_motor += dt * FE[motor] * (om0 + 0.5 * (v0[motor] + v[motor]))
     # 2) friction: each spring mass (the two masses of a nested pair together) is
     #    solved implicitly in its slip speeds, the housing bodies' speeds known
-    #    with the hardstop contacts in the same implicit solve
-    contact_laws(v, v0, FN, P, CI, CF, FW, XS, MU, DMU)
+    #    with the hardstop contacts in the same implicit solve; then Newton
+    #    re-solves of the law about the solved slips while it is off by more than
+    #    the tolerance (docs/model.md §12)
+    contact_laws(v, v0, FN, P, CI, CF, invj, dt, FW, XS, MU, DMU, TH)
     closed = hs_on and hardstop_coefficients(q, P, dt, HS)
-    if closed:
+    for i in range(ndof):
+        vb[i] = v[i]
+    friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
+    if closed and hardstop_release(q, v, P, HS):
         for i in range(ndof):
-            vb[i] = v[i]
-    ef = friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
+            v[i] = vb[i]
+        friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
+    ef = newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU, TH, SK, ML, stats)
     if closed:
-        if hardstop_release(q, v, P, HS):
-            for i in range(ndof):
-                v[i] = vb[i]
-            ef = friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
         e_damp += hardstop_dissipation(P, dt, HS, vb, v)
     e_fric += ef
     if clutch:
