@@ -41,7 +41,9 @@ class SimulationResult:
     output transducer, [thesis] §6.2.1); speed_* [rad/s] absolute; windup_outer,
     windup_inner [rad] (windup of each set), windup_total [rad] (J_pri minus output
     transducer angle, the rig's measured windup); hardstop_outer/inner [N m] (contact
-    torque, 0 when free); energy: dict of cumulative energies [J].
+    torque, 0 when free); energy: dict of cumulative energies [J] (input_work, motor_work,
+    kinetic, elastic, friction, damping, stacking; hardstop is the hardstop contacts'
+    share of damping).
     Segment states: segment_t [s], nodes [frames, nodes] slot coordinates [rad].
     """
 
@@ -84,6 +86,7 @@ class SimulationResult:
             "friction": c[slots.R_E_FRIC].copy(),
             "damping": c[slots.R_E_DAMP].copy(),
             "stacking": c[slots.R_E_STACK].copy(),
+            "hardstop": c[slots.R_E_HS].copy(),
         }
         return cls(
             t=c[slots.R_T].copy(),

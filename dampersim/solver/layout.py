@@ -125,7 +125,8 @@ R_E_DAMP = 18  # viscous dissipation (shafts, inertia damping, hardstop damping)
 R_E_STACK = 19  # energy removed by coil-stacking contacts [J]
 R_SET_O = 20  # torque the outer set's springs pass to J_sec [N m]
 R_SET_I = 21  # torque the inner set's springs pass to J_ter [N m]
-NREC = 22
+R_E_HS = 22  # hardstop contacts' share of R_E_DAMP (their damping) [J]
+NREC = 23
 
 # --- integrator state besides (q, v), carried from step to step (vector S) -------------
 S_Z = 0  # PI state of the output motor: minus its angle, the integral of -v_motor [rad]
@@ -134,7 +135,8 @@ S_E_MOTOR = 2  # work of the output motor [J]
 S_E_FRIC = 3  # friction dissipation [J]
 S_E_DAMP = 4  # viscous dissipation [J]
 S_E_STACK = 5  # energy removed by coil-stacking contacts [J]
-S_SIZE = 6
+S_E_HS = 6  # hardstop contacts' share of S_E_DAMP [J]
+S_SIZE = 7
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,8 @@ from dampersim.units import rpm_to_rad_s
             ((2, 300.0, 0.0), (1, 40.0, 0.3)),
         ),
         ("on the hardstops", {}, 450.0, ((2, 250.0, 0.0),)),
+        # mean torque at the outer knee: the hardstop closes and opens every cycle
+        ("across the knee", {}, 320.0, ((2, 300.0, 0.0),)),
     ],
 )
 def test_energy_balance(name, updates, mean, orders):
@@ -36,7 +38,10 @@ def test_energy_balance(name, updates, mean, orders):
     losses = e["friction"][-1] + e["damping"][-1] + e["stacking"][-1]
     assert losses > 0
     assert e["friction"][-1] >= 0 and e["damping"][-1] >= 0
-    # 1 % of the losses: the criterion; the mean power flow through the damper is
-    # ~100x larger, so this is a 1e-4 relative check on the input work
-    assert abs(res.energy_residual()[-1]) < 0.01 * losses
-    assert np.max(np.abs(res.energy_residual())) < 0.01 * losses
+    # 1 % of the dissipation a friction or contact error would corrupt (friction plus the
+    # hardstop contacts), not of all losses: the rig's viscous losses (thousands of J)
+    # would hide an error as large as the whole friction dissipation (25-300 J here)
+    guarded = e["friction"][-1] + e["hardstop"][-1]
+    assert 0.0 <= e["hardstop"][-1] <= e["damping"][-1]
+    assert abs(res.energy_residual()[-1]) < 0.01 * guarded
+    assert np.max(np.abs(res.energy_residual())) < 0.01 * guarded

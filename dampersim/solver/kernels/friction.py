@@ -94,29 +94,38 @@ def fitted_theta(z):
 
 
 @njit(inline="always", **JIT)
-def _linear_law(c, mu, dmu, th, s_lin, x_eval, safe, FN, CI, CF, W):
+def _linear_law(c, mu, dmu, th, s_lin, s_pred, x_eval, safe, FN, CI, CF, W):
     """Linearised friction torque of contact c into W: T = W[2c] + W[2c+1] * s, with s the
     end-of-step slip [rad/s].
 
     The law (mu, dmu) is taken at the slip x_eval [m/s] = r ((1 - th) s0 + th s_lin)
     (s0: start of step, s_lin: the current estimate of the end-of-step slip) and
-    applied at (1 - th) s0 + th s: the line passes through the law's value there with
-    slope th * m in s. First solve (``safe`` false): m = max(dmu, 0), the tangent, with
-    a falling (Stribeck) branch applied as a constant. Newton re-solves (``safe``):
-    m = max(dmu, mu / x_eval), at least the secant through zero slip. The regularised
-    law is concave in |v| wherever it matters, so a pure tangent step can overshoot
-    from a far slip to the other side and oscillate there (a mass caught by friction
-    within one step); the secant bound makes every iterate approach the solution from
-    one side (Kacanov's iteration), and near zero slip the two coincide."""
+    applied at (1 - th) s0 + th s: a line through the law's value there with slope
+    th * m in s.
+    First solve (``safe`` false): m = dmu, the tangent; a falling (Stribeck) slope is
+    not made implicit but applied explicitly at the predicted slip s_pred (the slip
+    after the smooth forces), which keeps it second order.
+    Newton re-solves (``safe``): m = max(dmu, mu / x_eval), at least the secant through
+    zero slip. The regularised law is concave in |v| wherever it matters, so a tangent
+    step from a far slip can overshoot to the other side and oscillate there (a mass
+    caught by friction within one step); with the secant bound every iterate approaches
+    the solution from one side (Kacanov's iteration), and near zero slip the two
+    coincide."""
     a = np.uintp(CI[c, 0])  # unsigned: no negative-index wraparound (see forces)
     r = CF[c, 1]
     cn = CF[c, 0] * FN[a] * r
-    m = max(dmu, 0.0)
-    if safe and x_eval != 0.0:
-        m = max(dmu, mu / x_eval)
-    q = th * cn * m * r
-    W[2 * c] = cn * mu - q * s_lin
-    W[2 * c + 1] = q
+    if safe:
+        m = dmu
+        if x_eval != 0.0:
+            m = max(dmu, mu / x_eval)
+        q = th * cn * m * r
+        W[2 * c] = cn * mu - q * s_lin
+        W[2 * c + 1] = q
+    else:
+        qc = th * cn * dmu * r
+        qi = max(qc, 0.0)
+        W[2 * c] = cn * mu - qi * s_lin + (qc - qi) * (s_pred - s_lin)
+        W[2 * c + 1] = qi
 
 
 @njit(**LEAF)
@@ -160,8 +169,9 @@ def contact_laws(v, v0, FN, P, CI, CF, invj, dt, W, XS, MU, DMU, TH):
         for c in range(TH.shape[0]):
             TH[c] = th
     for c in range(nc):
-        _linear_law(c, MU[c], DMU[c], TH[c], v0[np.uintp(CI[c, 0])] - v0[np.uintp(CI[c, 1])], XS[c], False,
-                    FN, CI, CF, W)
+        a = np.uintp(CI[c, 0])
+        b = np.uintp(CI[c, 1])
+        _linear_law(c, MU[c], DMU[c], TH[c], v0[a] - v0[b], v[a] - v[b], XS[c], False, FN, CI, CF, W)
 
 
 @njit(inline="always", **JIT)
@@ -234,7 +244,7 @@ def refine_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU, TH, SK, ML, tol, first, fi
             XS[c] = ((1.0 - TH[c]) * (v0[a] - v0[np.uintp(CI[c, 1])]) + TH[c] * SK[c]) * CF[c, 1]
         _laws(XS, MU, DMU, g1, g2, g3, g4, g5, g6)
     for c in range(nc):
-        _linear_law(c, MU[c], DMU[c], TH[c], SK[c], XS[c], True, FN, CI, CF, W)
+        _linear_law(c, MU[c], DMU[c], TH[c], SK[c], SK[c], XS[c], True, FN, CI, CF, W)
     return True
 
 

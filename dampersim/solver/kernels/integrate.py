@@ -40,6 +40,7 @@ from dampersim.solver.layout import (
     P_VMAX,
     R_E_DAMP,
     R_E_FRIC,
+    R_E_HS,
     R_E_IN,
     R_E_KIN,
     R_E_MOTOR,
@@ -49,6 +50,7 @@ from dampersim.solver.layout import (
     R_TOUT,
     S_E_DAMP,
     S_E_FRIC,
+    S_E_HS,
     S_E_IN,
     S_E_MOTOR,
     S_E_STACK,
@@ -148,6 +150,7 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
     e_fric = S[S_E_FRIC]
     e_damp = S[S_E_DAMP]
     e_stack = S[S_E_STACK]
+    e_hs = S[S_E_HS]
     record = row.shape[0] > 0
     # v holds the speeds half a step before q's time; velocity-dependent forces use
     # the speeds extrapolated to q's time (second order; plain v would make the
@@ -179,6 +182,7 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
         row[R_E_FRIC] = e_fric
         row[R_E_DAMP] = e_damp
         row[R_E_STACK] = e_stack
+        row[R_E_HS] = e_hs
     if segrow.shape[0] > 0:
         spring_nodes(q, P, SF, SI, X)
         for k in range(segrow.shape[0]):
@@ -211,7 +215,9 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
         friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
     ef = newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU, TH, SK, ML, stats)
     if closed:
-        e_damp += hardstop_dissipation(P, dt, HS, vb, v)
+        eh = hardstop_dissipation(P, dt, HS, vb, v)
+        e_damp += eh
+        e_hs += eh
     e_fric += ef
     if clutch:
         # lock-up clutch slip (effect clutch_slip), implicit like the spring friction
@@ -229,6 +235,7 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
     S[S_E_FRIC] = e_fric
     S[S_E_DAMP] = e_damp
     S[S_E_STACK] = e_stack
+    S[S_E_HS] = e_hs
 
 
 @njit(**JIT)
