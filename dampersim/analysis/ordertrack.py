@@ -1,16 +1,30 @@
 """Order tracking: engine-order amplitudes and phases of a signal on the measured shaft angle.
 
 :func:`dampersim.signal.order_amplitudes` reads orders from a time-domain spectrum at one
-nominal speed. On a rig the shaft speed drifts during a record and carries a ripple at the
-engine orders, so an order's frequency moves: its energy spreads over neighbouring bins and
-the ripple's sidebands fall onto the neighbouring orders. Order tracking removes both: the
-signal is resampled onto a uniform grid of the measured shaft angle and transformed over a
-whole number N of revolutions, where order k is exactly bin k * N whatever the speed did.
+nominal speed. On a rig the shaft speed drifts during a record and ripples slowly, so an
+order's frequency moves: its energy spreads over neighbouring bins and the ripple's sidebands
+fall onto the neighbouring orders. Order tracking removes both: the signal is resampled onto
+a uniform grid of the shaft angle and transformed over a whole number N of revolutions, where
+order k is exactly bin k * N whatever the speed did.
+
+What the angle must follow is the motion the excitation is locked to. A rig's input
+dynamometer generates the orders against time at the set speed's order frequencies; the
+speed channel, measured on the damper's input side, also carries the damper's own torsional
+vibration at those orders (tens of rpm). An angle integrated from that instantaneous speed
+phase-modulates every order by the vibration and moves content between orders (order 2's
+sidebands land on orders 4 and 0, order 4's on 2 and 6, ...). The speed is therefore
+low-passed first: a Butterworth filter of order LOWPASS_ORDER run forwards and backwards
+(zero phase), its cut-off at LOWPASS_SHARE of the lowest analysed order's frequency at the
+record's mean speed (of the lowest half order when half orders are read). The drift of the
+mean speed and a slow ripple below the cut-off pass and are tracked; vibration at the
+analysed orders (at least twice the cut-off) is attenuated 250-fold or more.
 
 Method, units SI inside (angle [rad], speed [rad/s], time [s]; rpm only in messages):
 
-1. angle = cumulative trapezoidal integral of the measured speed (or a measured angle
-   channel as given), interpolated linearly onto the signal's time stamps;
+1. angle = cumulative trapezoidal integral of the low-passed speed (or a measured angle
+   channel as given), its constant set so that it agrees on average over the record with
+   the integral of the unfiltered speed, which is 0 at the first sample; interpolated
+   linearly onto the signal's time stamps;
 2. N = the largest whole number of revolutions in the record (a multiple of 2 when half
    orders are asked for, so that they are whole bins too), centred in the record;
 3. the signal is interpolated onto M samples per revolution with a cubic spline of signal
@@ -29,6 +43,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import signal as sps
 from scipy.fft import next_fast_len
 from scipy.interpolate import CubicSpline
 
@@ -47,6 +62,12 @@ MIN_SPEED_SHARE = 0.5
 MAX_ORDER_DENOMINATOR = 4
 #: Fewest samples accepted.
 MIN_SAMPLES = 16
+#: Cut-off of the speed low-pass as a share of the lowest analysed order's frequency at the
+#: record's mean speed: the lowest order lies one octave above it (attenuated 1 / (1 + 2^8)
+#: by LOWPASS_ORDER forwards and backwards), while a slow ripple at 0.3 of it keeps 98 %.
+LOWPASS_SHARE = 0.5
+#: Order of the Butterworth speed low-pass (applied forwards and backwards: zero phase).
+LOWPASS_ORDER = 4
 
 
 @dataclass(frozen=True)
@@ -129,12 +150,61 @@ def check_speed(speed, channel: str = "speed") -> np.ndarray:
     return w
 
 
-def shaft_angle(time, speed, channel: str = "speed") -> np.ndarray:
-    """Shaft angle [rad] at ``time`` [s] from the measured ``speed`` [rad/s] there: the
-    cumulative trapezoidal integral, 0 at the first sample."""
+def _integral(t, w) -> np.ndarray:
+    return np.concatenate(([0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))))
+
+
+def low_passed_speed(time, speed, cutoff_hz: float, channel: str = "speed") -> np.ndarray:
+    """``speed`` [rad/s] at ``time`` [s] through the zero-phase Butterworth low-pass
+    (LOWPASS_ORDER, forwards and backwards) with its cut-off at ``cutoff_hz`` [Hz]. Filtered
+    on a uniform grid over the record (the time stamps' own when uniform)."""
     w = check_speed(speed, channel)
     t = _time(time, w.size, f"speed channel {channel!r}")
-    return np.concatenate(([0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))))
+    fs = (t.size - 1) / (t[-1] - t[0])
+    if not 0.0 < cutoff_hz < 0.5 * fs:
+        raise InputError(f"speed channel {channel!r}: low-pass cut-off {cutoff_hz!r} Hz; accepted is a cut-off "
+                         f"above 0 and below the Nyquist frequency {0.5 * fs:.6g} Hz")
+    grid = np.linspace(t[0], t[-1], t.size)
+    sos = sps.butter(LOWPASS_ORDER, cutoff_hz, fs=fs, output="sos")
+    smooth = sps.sosfiltfilt(sos, np.interp(grid, t, w), padlen=min(t.size - 1, 3 * (2 * len(sos) + 1)))
+    return np.interp(t, grid, smooth)
+
+
+def shaft_angle(time, speed, channel: str = "speed", cutoff_hz: float | None = None) -> np.ndarray:
+    """Shaft angle [rad] at ``time`` [s] from the measured ``speed`` [rad/s] there: the
+    cumulative trapezoidal integral, 0 at the first sample. With ``cutoff_hz`` [Hz], the
+    integral of :func:`low_passed_speed`, shifted to agree on average over the record with
+    the unfiltered integral (so angle 0 stays at the first sample, but for the vibration)."""
+    w = check_speed(speed, channel)
+    t = _time(time, w.size, f"speed channel {channel!r}")
+    raw = _integral(t, w)
+    if cutoff_hz is None:
+        return raw
+    th = _integral(t, low_passed_speed(t, w, cutoff_hz, channel))
+    return th + float(np.mean(raw - th))
+
+
+def lowpass_cutoff(orders, mean_speed: float, share: float = LOWPASS_SHARE) -> float:
+    """Cut-off [Hz] of the speed low-pass for tracking ``orders`` at ``mean_speed`` [rad/s]:
+    ``share`` of the lowest order's frequency (see the module docstring)."""
+    if not 0.0 < share < 1.0:
+        raise InputError(f"low-pass share {share!r}: accepted is a share above 0 and below 1 of the lowest "
+                         "order's frequency (None: no low-pass)")
+    orders, _ = _orders(orders)
+    return share * float(np.min(orders)) * mean_speed / (2.0 * math.pi)
+
+
+def tracking_angle(time, speed, orders=DEFAULT_ORDERS, share: float | None = LOWPASS_SHARE,
+                   channel: str = "speed") -> np.ndarray:
+    """Shaft angle [rad] to track ``orders`` on: :func:`shaft_angle` of ``speed`` [rad/s]
+    low-passed at :func:`lowpass_cutoff` of the record's mean speed; ``share`` None
+    integrates the unfiltered speed."""
+    w = check_speed(speed, channel)
+    t = _time(time, w.size, f"speed channel {channel!r}")
+    if share is None:
+        return shaft_angle(t, w, channel)
+    mean_speed = float(_integral(t, w)[-1] / (t[-1] - t[0]))
+    return shaft_angle(t, w, channel, lowpass_cutoff(orders, mean_speed, share))
 
 
 def _orders(orders) -> tuple:
@@ -229,17 +299,20 @@ def track_orders(x, time, angle, orders=DEFAULT_ORDERS, revolutions: int | None 
 
 
 def track_orders_by_speed(x, time, speed, orders=DEFAULT_ORDERS, speed_time=None, revolutions: int | None = None,
-                          channel: str = "speed", start: float | None = None) -> TrackedOrders:
-    """:func:`track_orders` with the angle integrated from a measured ``speed`` [rad/s].
+                          channel: str = "speed", start: float | None = None,
+                          share: float | None = LOWPASS_SHARE) -> TrackedOrders:
+    """:func:`track_orders` on :func:`tracking_angle` of a measured ``speed`` [rad/s]
+    (low-passed at ``share`` of the lowest order's frequency; None: unfiltered).
 
     speed is sampled at ``speed_time`` [s] (default: ``time``, the signal's own stamps); a
     signal sampled on another time base (a simulation driven by the record) is analysed where
     the two overlap, its angle interpolated linearly from the speed channel's.
     """
     if speed_time is None:
-        return track_orders(x, time, shaft_angle(time, speed, channel), orders, revolutions, channel, start)
+        th = tracking_angle(time, speed, orders, share, channel)
+        return track_orders(x, time, th, orders, revolutions, channel, start)
     ts = np.asarray(speed_time, dtype=float)
-    th = shaft_angle(ts, speed, channel)
+    th = tracking_angle(ts, speed, orders, share, channel)
     x = _array(x, "signal", "samples")
     t = _time(time, x.size, "the signal")
     inside = (t >= ts[0]) & (t <= ts[-1])
@@ -250,4 +323,5 @@ def track_orders_by_speed(x, time, speed, orders=DEFAULT_ORDERS, speed_time=None
     return track_orders(x[inside], t[inside], np.interp(t[inside], ts, th), orders, revolutions, channel, start)
 
 
-__all__ = ["TrackedOrders", "MIN_REVOLUTIONS", "check_speed", "shaft_angle", "track_orders", "track_orders_by_speed"]
+__all__ = ["TrackedOrders", "MIN_REVOLUTIONS", "LOWPASS_SHARE", "LOWPASS_ORDER", "check_speed", "low_passed_speed",
+           "shaft_angle", "lowpass_cutoff", "tracking_angle", "track_orders", "track_orders_by_speed"]

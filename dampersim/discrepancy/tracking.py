@@ -1,12 +1,16 @@
 """Order amplitudes of measured test points, tracked on each point's measured input speed.
 
 A measured torsional point carries its input speed channel (``input_speed_rpm``). Its order
-amplitudes are read on the shaft angle integrated from that channel
-(:mod:`dampersim.analysis.ordertrack`), so that the rig's speed drift and its speed ripple at
-the engine orders do not smear the orders. The model run a point drives lives on the point's
-time base (it is driven by the measured input torque), so its output is read with the same
-angle over exactly the same revolutions: measurement and model go through one and the same
-operator, and a speed ripple or a speed sensor's scale error cannot open a gap between them.
+amplitudes are read on the shaft angle integrated from that channel low-passed below the
+analysed orders (:func:`dampersim.analysis.ordertrack.tracking_angle`, cut-off at
+LOWPASS_SHARE of the lowest order's frequency), so that the rig's speed drift and slow speed
+ripple do not smear the orders, while the damper's own torsional vibration at the orders,
+which the channel also carries, does not phase-modulate them: the rig generates its
+excitation against time at the set speed's order frequencies. The model run a point drives
+lives on the point's time base (it is driven by the measured input torque), so its output is
+read with the same angle over exactly the same revolutions: measurement and model go through
+one and the same operator, and a speed ripple or a speed sensor's scale error cannot open a
+gap between them.
 
 A point without a speed channel (``input_speed_rpm`` None) falls back to the nominal-speed
 spectrum of :func:`dampersim.signal.order_amplitudes`, as do simulations that are not driven by
@@ -20,7 +24,7 @@ import math
 
 import numpy as np
 
-from dampersim.analysis.ordertrack import TrackedOrders, check_speed, shaft_angle, track_orders
+from dampersim.analysis.ordertrack import LOWPASS_SHARE, TrackedOrders, check_speed, track_orders, tracking_angle
 from dampersim.errors import InputError
 from dampersim.signal import order_amplitudes
 
@@ -37,19 +41,20 @@ def point_speed(point) -> np.ndarray | None:
     return check_speed(np.asarray(rpm, dtype=float) * (math.pi / 30.0), SPEED_CHANNEL)
 
 
-def point_angle(point, part: slice = slice(None)) -> np.ndarray | None:
-    """Input shaft angle [rad] over ``part`` of the point's samples, 0 at the part's first
-    sample; None without a speed channel."""
+def point_angle(point, orders, part: slice = slice(None)) -> np.ndarray | None:
+    """Input shaft angle [rad] to track ``orders`` on over ``part`` of the point's samples
+    (the speed low-passed at LOWPASS_SHARE of the lowest order's frequency), 0 at the part's
+    first sample on average over the part; None without a speed channel."""
     w = point_speed(point)
     if w is None:
         return None
-    return shaft_angle(point.time[part], w[part], SPEED_CHANNEL)
+    return tracking_angle(point.time[part], w[part], orders, LOWPASS_SHARE, SPEED_CHANNEL)
 
 
 def tracked(point, signal, orders, part: slice = slice(None)) -> TrackedOrders:
     """Tracked order spectrum of ``signal`` (a channel of ``point``, [N m]) over ``part`` of
     the record. The point must have a speed channel."""
-    th = point_angle(point, part)
+    th = point_angle(point, orders, part)
     if th is None:
         raise InputError(f"point {point.id}: no {SPEED_CHANNEL} channel to track the orders on")
     return track_orders(np.asarray(signal)[part], point.time[part], th, orders, channel=SPEED_CHANNEL)
@@ -77,7 +82,7 @@ def driven_orders(point, res, steady_start: float, orders) -> np.ndarray:
     x = np.asarray(res.output_torque[w], dtype=float)
     ref = tracked(point, point.output_torque, orders)
     inside = (t >= point.time[0]) & (t <= point.time[-1])
-    th = np.interp(t[inside], point.time, point_angle(point))
+    th = np.interp(t[inside], point.time, point_angle(point, orders))
     return track_orders(x[inside], t[inside], th, orders, revolutions=ref.revolutions, channel=SPEED_CHANNEL,
                         start=ref.start).amplitudes
 

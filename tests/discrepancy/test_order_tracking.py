@@ -18,13 +18,18 @@ IN_AMPS = np.array([20.0, 200.0, 15.0, 60.0, 10.0, 25.0, 8.0, 12.0])  # [N m]
 OUT_AMPS = np.array([6.0, 40.0, 5.0, 12.0, 3.0, 4.0, 2.0, 2.5])  # [N m]
 
 
-def shaft(t, rpm0=RPM, rpm1=1530.0, ripple=0.02):
-    """(angle [rad], speed [rad/s]) at ``t`` [s]: speed drifting from rpm0 to rpm1 over the
-    record, rippling by ``ripple`` (relative) at the 1st order."""
+def shaft(t, rpm0=RPM, rpm1=1530.0, ripple=0.02, vibration=0.02):
+    """(angle [rad], speed [rad/s]) at ``t`` [s]: the rig's speed drifting from rpm0 to rpm1
+    over the record and rippling slowly by ``ripple`` (relative) at 0.3 times the 1st
+    order's frequency; angle is the angle of that motion, which the excitation follows. The
+    speed channel also carries the damper's torsional vibration, ``vibration`` (relative) at
+    the 2nd order, which the excitation does not follow."""
     w0, w1 = rpm0 * math.pi / 30.0, rpm1 * math.pi / 30.0
     acc = (w1 - w0) / SECONDS
     base = w0 * t + 0.5 * acc * t ** 2
-    return base + ripple * np.sin(base), (w0 + acc * t) * (1.0 + ripple * np.cos(base))
+    angle = base + ripple / 0.3 * np.sin(0.3 * base)
+    speed = (w0 + acc * t) * (1.0 + ripple * np.cos(0.3 * base))
+    return angle, speed * (1.0 + vibration * np.sin(2.0 * angle))
 
 
 def orders_at(angle, amps, mean=300.0):
@@ -42,11 +47,13 @@ def drifting_point(t=None, speed_scale=1.0):
 
 def test_measured_orders_are_tracked_on_the_speed_channel():
     p = drifting_point()
-    # 1 %: the tracking itself is exact to 2e-5 on noise-free records (tests/unit/test_ordertrack.py)
+    # 1 %: the tracking itself is exact to 3e-5 on noise-free records, the speed channel's
+    # vibration at the 2nd order filtered out (tests/unit/test_ordertrack.py)
     np.testing.assert_allclose(drive.measured_orders(p), OUT_AMPS, rtol=0.01)
-    # the nominal-speed read-out the campaign used before is more than 10 % off here
+    # the nominal-speed read-out the campaign used before is more than 5 % off here (5x the
+    # tolerance above)
     nominal = order_amplitudes(p.output_torque, FS, p.speed, drive.ORDERS)
-    assert np.max(np.abs(nominal / OUT_AMPS - 1.0)) > 0.10
+    assert np.max(np.abs(nominal / OUT_AMPS - 1.0)) > 0.05
 
 
 def fake_run(point, steady_start=0.6, rate=3 * FS, speed_scale=1.0):
