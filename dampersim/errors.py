@@ -44,3 +44,8 @@ class SimulationDiverged(DampersimError, RuntimeError):
 
     def __reduce__(self):
         return (type(self), (self.time, self.reason, self.time_step))
+
+
+class AccuracyWarning(UserWarning):
+    """A setting is allowed but outside what dampersim's accuracy checks cover (e.g. a
+    time step above the accuracy-tested default): results may carry larger errors."""

@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
-from dampersim.errors import DampersimError
+from dampersim.errors import AccuracyWarning, DampersimError
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``dampersim`` parser with every command; each sets ``func`` to its command."""
@@ -34,12 +35,26 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+_SHOWN: set = set()
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Print a warning as one line for the engineer, each text once per command."""
+    if str(message) not in _SHOWN:
+        _SHOWN.add(str(message))
+        print(f"warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``), run the command, return its exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            # a warning of ours is a line for the engineer, once, without a source line
+            warnings.filterwarnings("always", category=AccuracyWarning)
+            warnings.showwarning = _show_warning
+            return args.func(args)
     except DampersimError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

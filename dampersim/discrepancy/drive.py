@@ -49,9 +49,11 @@ def diagnosis_system(system):
     """``system`` with its own time step, lowered to 98 % of the stability bound where a
     calibration trial (inertias down, stiffnesses up) has moved the bound below it.
 
-    The diagnosis runs at the parameter set's step (the default 1/60 000 s): a coarser one
-    (4e-5 s was tried) left 1-3 % integration error on the excited orders at high speed
-    and torque, a systematic gap of the order of the noise floor that no effect explains.
+    The diagnosis runs at the parameter set's step (the default 1/120 000 s, the largest
+    that passes the accuracy grid of docs/model.md §12 away from knee points with
+    several steady states): a coarser one (4e-5 s was tried) left 1-3 % integration
+    error on the excited orders at high speed and torque, a systematic gap of the order
+    of the noise floor that no effect explains.
     """
 
     dt = min(system.solver.time_step, 0.98 * max_stable_time_step(system))

@@ -154,7 +154,7 @@ class OutputMotor:
 class Solver:
     """Numerical settings (not hardware)."""
 
-    time_step: float = param("s", "fixed integration step", 1.0e-8, 1.0e-3, default=1.0 / 60000.0)
+    time_step: float = param("s", "fixed integration step", 1.0e-8, 1.0e-3, default=1.0 / 120000.0)
     outer_segments: int = param("-", "segments per outer spring ([thesis] §6.2.2: 18)", 4, 200, default=18, kind=int)
     inner_segments: int = param("-", "segments per nested-pair spring ([thesis] §6.2.2: 8)", 4, 200, default=8, kind=int)
     duration: float = param("s", "simulated time", 0.01, 600.0, default=2.6)

@@ -11,12 +11,14 @@ inner segments are assembled.
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from dampersim.errors import InputError, ParameterError
-from dampersim.parameters.model import DamperSystem
+from dampersim.errors import AccuracyWarning, InputError, ParameterError
+from dampersim.parameters.model import DamperSystem, Solver
 from dampersim.solver.layout import F_COUNT, F_KSEG, I_A, I_N, I_OFF, P_MOTOR, P_PA_C, P_PA_DOF, P_PA_K, P_RIG0, P_TD_C, build_layout
 
 
@@ -192,18 +194,35 @@ def max_stable_time_step(system: DamperSystem) -> float:
     return dt
 
 
+def accuracy_tested_time_step() -> float:
+    """The largest time step [s] whose accuracy the accuracy grid checks: the default
+    ``solver.time_step`` (docs/model.md §12, ``python bench/bench_accuracy.py --grid step``)."""
+    return next(f.default for f in dataclasses.fields(Solver) if f.name == "time_step")
+
+
 def check_time_step(system: DamperSystem) -> DamperSystem:
     """Raise ParameterError naming ``solver.time_step`` when the step [s] exceeds
     :func:`max_stable_time_step` of this parameter set; return ``system`` otherwise.
+    A stable step above :func:`accuracy_tested_time_step` is allowed with an
+    :class:`~dampersim.errors.AccuracyWarning`.
 
     The bound depends on the discretisation (segment counts, contact stiffness), so it is
     the solver's check, made after :func:`dampersim.parameters.validate`.
     """
+    dt = system.solver.time_step
     dt_max = max_stable_time_step(system)
-    if system.solver.time_step > dt_max:
+    if dt > dt_max:
         raise ParameterError(
             "solver.time_step",
-            system.solver.time_step,
+            dt,
             f"a step at or below the stability bound {dt_max:.3g} s of this parameter set",
+        )
+    tested = accuracy_tested_time_step()
+    if dt > tested * (1.0 + 1e-9):
+        warnings.warn(
+            f"solver.time_step = {dt:.4g} s is stable (bound {dt_max:.3g} s) but above {tested:.4g} s, the "
+            "largest step whose accuracy is checked (docs/model.md §12): results may carry larger errors",
+            AccuracyWarning,
+            stacklevel=2,
         )
     return system

@@ -74,7 +74,7 @@ PARAMETER_RANGES = {
     "friction.pair_inner.alpha": (0.0, 2.0),
     # every solver setting a link can reach has a range: together with the cost budget
     # (dampersim.costs) they keep one link from asking for hours of computing or
-    # gigabytes of arrays. Time step [s]: the default 1/60 000 s sits in the middle; a
+    # gigabytes of arrays. Time step [s]: the default 1/120 000 s sits in the middle; a
     # finer step than 1e-7 s is a numerical study, not a dashboard view.
     "solver.time_step": (1e-7, 1e-4),
     # sample rates [Hz]: the pages analyse up to 1 kHz (2 kHz is the least that holds it);

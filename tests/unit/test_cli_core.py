@@ -101,3 +101,15 @@ def test_map_command_small_grid(tmp_path, capsys):
     # above the knee only the inner set works: attenuation is poorer than below it
     assert d["zones"]["above_knee_high"]["median_mr"] > d["zones"]["below_knee_high"]["median_mr"]
     assert (tmp_path / "map" / "sweep.parquet").exists()
+
+
+def test_step_above_the_tested_default_is_one_warning_line(capsys):
+    # a stable but coarser step runs (exit 0) and says once, on stderr, that its accuracy
+    # is not checked; a step above the stability bound is refused with the bound (exit 2)
+    argv = ["simulate", "--speed", "1500", "--torque", "200", "--orders", "2:50", "--duration", "0.3",
+            "--set", "solver.time_step=3.3333333e-5", "--json"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning: solver.time_step") == 1 and "accuracy is checked" in err
+    assert main(argv[:-2] + ["solver.time_step=2e-4", "--json"]) == 2
+    assert "stability bound" in capsys.readouterr().err

@@ -96,6 +96,24 @@ def test_unstable_time_step_names_field_value_and_bound():
     assert msg.startswith(name) and fragment in msg
 
 
+def test_stable_step_above_the_tested_default_warns_and_runs():
+    # allowed (below the stability bound) but outside the accuracy grid: a warning that
+    # names the field, the bound and the tested step; the default itself is silent
+    import warnings
+
+    from dampersim.errors import AccuracyWarning
+    from dampersim.solver.linear import accuracy_tested_time_step
+
+    tested = accuracy_tested_time_step()
+    assert tested == default_parameters().solver.time_step
+    coarse = with_updates(default_parameters(), {"solver.time_step": 2 * tested})
+    with pytest.warns(AccuracyWarning, match=r"solver.time_step = .* largest step whose accuracy is checked"):
+        assert check_time_step(coarse) is coarse
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_time_step(default_parameters())
+
+
 def test_validate_returns_valid_set():
     p = default_parameters()
     assert validate(p) is p

@@ -168,8 +168,9 @@ ORIGINS = {
     "motor.integral_gain": "estimate: integral action about four times slower than the proportional loop "
     "(2800 / 120 = 23 rad/s), so the held speed has no steady error",
     # --- numerical settings
-    "solver.time_step": "model: 1/60 000 s converges the excited orders within 1 % and divides the usual "
-    "output rates (docs/model.md §12); the thesis's Simulink model used 1e-6 s ([thesis] §5.6)",
+    "solver.time_step": "model: 1/120 000 s, the largest step of the accuracy grid (docs/model.md §12) whose "
+    "orders agree with a 1e-6 s reference within 1 % (or twice their spread) wherever the reference has a "
+    "single steady state; it divides the usual output rates. The thesis's Simulink model used 1e-6 s ([thesis] §5.6)",
     "solver.outer_segments": "[thesis] §6.2.2: 18 outer segments, the best balance of accuracy and run time",
     "solver.inner_segments": "[thesis] §6.2.2: 8 inner segments, the optimum for the nested springs",
     "solver.duration": "[thesis] §6.2.1: 0.3 s mean ramp, 0.3 s amplitude ramp, then a 2 s sample: 2.6 s",
