@@ -150,3 +150,32 @@ def table(err, spread, sens, ok, allowed):
                         f"spread {spread[i, k]:6.2f} %  ref. tol. sens. {sens[i, k]:6.2f} %  "
                         f"allowed {allowed[i, k]:5.2f} %  {verdict}")
     return rows
+
+
+def newton_statistics(system):
+    """Per grid point, the share of steps [-] whose friction step was re-solved (Newton)
+    and the number of steps that needed the last resort (the law's torque applied as a
+    constant), from the production loop's counters."""
+    from dampersim.solver.driver import input_torque
+    from dampersim.solver.kernels.integrate import march, workspace
+    from dampersim.solver.layout import NREC, S_SIZE, build_layout, initial_state
+    from dampersim.solver.driver import no_generator
+    from dampersim.solver.engine_layout import EO_SIZE
+
+    rows = []
+    for point in POINTS:
+        ex = excitation(point)
+        lay = build_layout(system, float(ex.speed))
+        dt = system.solver.time_step
+        n = int(round(system.solver.duration / dt))
+        q, v = initial_state(lay)
+        W = workspace(lay.J, lay.n_nodes, len(lay.contacts_idx), len(lay.singles), len(lay.pairs))
+        G = (np.zeros(0), np.zeros(0), np.zeros(EO_SIZE))
+        status, _ = march(q, v, v.copy(), np.zeros(S_SIZE), input_torque(ex, n, dt), lay.P, lay.SF, lay.SI, lay.J,
+                          lay.rig, lay.contacts_idx, lay.contacts_f, lay.singles, lay.pairs, n + 1, 1,
+                          np.zeros((0, NREC)), np.zeros((0, lay.n_nodes)), np.zeros(NREC), np.zeros(lay.n_nodes),
+                          np.zeros(0), W, *no_generator(), G)
+        if status != 0:
+            raise RuntimeError(f"point {point} diverged (status {status})")
+        rows.append((point, W.stats[1] / n, int(W.stats[2])))
+    return rows

@@ -13,6 +13,7 @@ or 32/12-segment reference, tolerance 1 % / 2 % or twice the order's physical sp
     python bench/bench_accuracy.py --grid step --steps 2e-5,1/60000
     python bench/bench_accuracy.py --grid segments --segments 18/8,24/10
     python bench/bench_accuracy.py --grid step --set solver.friction_scheme=trapezoidal
+    python bench/bench_accuracy.py --grid newton   # friction re-solves per point (~30 s)
 """
 
 from __future__ import annotations
@@ -131,7 +132,8 @@ def _cli():
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--grid", choices=("step", "segments"), help="run the accuracy grid instead")
+    ap.add_argument("--grid", choices=("step", "segments", "newton"),
+                    help="run the accuracy grid instead ('newton': friction re-solve counts at the grid's points)")
     ap.add_argument("--steps", default=None, help="candidate steps [s], comma-separated (a/b allowed)")
     ap.add_argument("--segments", default=None, help="candidate 'outer/inner' segment counts, comma-separated")
     ap.add_argument("--workers", type=int, default=2)
@@ -142,6 +144,17 @@ def _cli():
         main()
         return
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    if a.grid == "newton":
+        import accuracy_grid as ag
+
+        rows = ag.newton_statistics(P)
+        for point, share, last in rows:
+            print(f"{point[0]:5d} rpm {point[1]:5.0f} +- {point[2]:3.0f} N m  re-solved steps {100 * share:6.2f} %  "
+                  f"last resort {last}")
+        shares = [r[1] for r in rows]
+        print(f"=== time step {P.solver.time_step:.6g} s: re-solved steps median {100 * np.median(shares):.2f} % "
+              f"(min {100 * min(shares):.2f} %, max {100 * max(shares):.2f} %), last-resort steps {sum(r[2] for r in rows)}")
+        return
     if a.grid == "step":
         cands = [P.solver.time_step] if a.steps is None else [_step(x) for x in a.steps.split(",")]
     else:
