@@ -2,9 +2,13 @@
 
 Makkar friction (Eq. 27-28) against the housing or, for the inner spring of a nested
 pair, against the outer spring's mass (Eq. 25-26). Each contact's law is linearised at
-the start-of-step slip and solved implicitly (Rosenbrock-type) together with the
-housing bodies it loads, so the stiff friction slope at small slip speed (about 38 per
-m/s) needs no tiny step.
+the start-of-step slip, applied with an exponentially fitted weight between the start
+and the end of the step (L-stable on stiff contacts, second order on soft ones) and
+solved implicitly together with the housing bodies it loads, so the stiff friction slope
+at small slip speed (about 38 per m/s) needs no tiny step; Newton re-solves keep the
+applied torque on the law (docs/model.md §12). We differ from the thesis here: its
+Simulink model ran the same law with a fixed step of 1e-6 s ([thesis] §5.6), 8x finer
+than our default.
 """
 
 import math
@@ -207,6 +211,7 @@ def refine_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU, TH, SK, ML, tol, first, fi
     re-solve cannot leave the law's bounds, whatever the linearisation's error."""
     g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     nc = CI.shape[0]
+    # two loops rather than a branch per contact: the first check runs every step
     if first:
         for c in range(nc):
             a = np.uintp(CI[c, 0])

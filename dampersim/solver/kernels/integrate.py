@@ -1,8 +1,10 @@
 """The damper's production integration step and the loop that marches it over a run.
 
-Integrator: symplectic (semi-implicit) Euler for the smooth forces, and a linearly
-implicit (Rosenbrock-type) update of each friction contact in turn, so the stiff
-friction slope at small slip speed (about 38 per m/s) needs no tiny step. One step is
+Integrator: symplectic (semi-implicit) Euler for the smooth forces, and an implicit
+friction step for all contacts together with the housings and hardstop contacts (an
+exponentially fitted weight per contact, Newton re-solves of the law;
+:mod:`.friction`), so the stiff friction slope at small slip speed (about 38 per m/s)
+needs no tiny step. One step is
 :func:`step`; :func:`integrate` repeats it, writes the records and checks for
 divergence. With the pulsation generator as the torque source ([thesis] §4.2, the rig
 mode), :func:`integrate` marches the generator chain
