@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import warnings
 
 import numpy as np
 
 from dampersim.uploads import decode_upload
-from dampersim.errors import DampersimError, InputError, ParameterError
+from dampersim.errors import AccuracyWarning, DampersimError, InputError, ParameterError
 from dampersim.parameters import default_parameters, dotted_names, dumps_toml, loads_toml, with_updates
 from dampersim.parameters.validation import describe_range
 from dampersim.units import number_text
@@ -194,7 +195,13 @@ def apply_overrides(base, overrides: dict, notices: list | None = None, source: 
                 v = parse_number(raw)
                 if not (lo <= v <= hi):
                     raise ParameterError(name, raw, f"a value from {number_text(lo)} to {number_text(hi)} on this dashboard")
-            system = check_time_step(with_updates(system, {name: raw}))
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", AccuracyWarning)
+                system = check_time_step(with_updates(system, {name: raw}))
+            if notices is not None:
+                # a stable step above the accuracy-tested default runs, and the page says so
+                notices.extend(notice(f"Parameter {name} from the {source}: {w.message}")
+                               for w in caught if issubclass(w.category, AccuracyWarning))
         except ParameterError as exc:
             if notices is not None:
                 shown = raw if isinstance(raw, str) else number_text(raw)

@@ -396,3 +396,20 @@ def test_segments_display_options_reuse_the_simulation(cache_dir, monkeypatch):
     monkeypatch.setattr(views.segments, "simulate", lambda *a, **k: pytest.fail("simulated again for a display option"))
     other = views.segments_view(system, {**state, "spring": "pair_inner", "gain": 1.0, "window": 0.5})
     assert other["key"] != first["key"] and other["summary"]["spring"] == "pair_inner"
+
+
+def test_coarse_time_step_from_a_link_runs_with_a_notice():
+    # a stable step above the accuracy-tested default is accepted (it runs), and the page
+    # says its accuracy is not checked; the default step gives no such notice
+    from dampersim.parameters import default_parameters
+    from dampersim.views.params import apply_overrides
+
+    base = default_parameters()
+    notices = []
+    system, accepted = apply_overrides(base, {"solver.time_step": 2 * base.solver.time_step}, notices)
+    assert accepted == {"solver.time_step": 2 * base.solver.time_step}
+    assert system.solver.time_step == 2 * base.solver.time_step
+    assert any("solver.time_step" in n["text"] and "accuracy is checked" in n["text"] for n in notices), notices
+    quiet = []
+    apply_overrides(base, {"solver.time_step": base.solver.time_step / 2}, quiet)
+    assert quiet == []
