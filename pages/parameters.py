@@ -17,6 +17,7 @@ from dampersim.incidents import public_message
 from dampersim.views.notices import notice
 from dampersim.views.params import (
     MAX_UPLOAD_BYTES,
+    accuracy_notices,
     apply_table_edits,
     parameters_toml,
     parameters_view,
@@ -143,7 +144,7 @@ def parameters_action(action, rows, params, contents=None, filename=None):
         n = len(new["overrides"])
         what = f"{n} value{'s' if n != 1 else ''} differ from the default set" if not new["set"] else \
             "its structure differs from the default set, so it is stored on this server and the link refers to it"
-        return {"params": new, "rows": table_rows(system), "notices": [], "system": system,
+        return {"params": new, "rows": table_rows(system), "notices": accuracy_notices(system), "system": system,
                 "status": notice(f"Loaded {filename or 'the file'} ({system.name}): {what}.", "success")}
     if action in ("validate", "apply"):
         try:
@@ -154,10 +155,10 @@ def parameters_action(action, rows, params, contents=None, filename=None):
                                        "error")]}
         n = len(new.get("overrides") or {})
         if action == "validate":
-            return {"params": None, "rows": None, "notices": [], "system": system,
+            return {"params": None, "rows": None, "notices": accuracy_notices(system), "system": system,
                     "status": notice(f"Valid: the edited set passes every check ({n} value{'s' if n != 1 else ''} differ from the base set). "
                                      "Press Apply to use it.", "success")}
-        return {"params": new, "rows": table_rows(system), "notices": [], "system": system,
+        return {"params": new, "rows": table_rows(system), "notices": accuracy_notices(system), "system": system,
                 "status": notice(f"Applied: {n} value{'s' if n != 1 else ''} differ from the base set; every page now uses this set.",
                                  "success")}
     raise PreventUpdate

@@ -39,7 +39,8 @@ _SHOWN: set = set()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """Print a warning as one line for the engineer, each text once per command."""
+    """Print a warning as one line for the engineer, each text once per command
+    (:func:`main` clears the record of shown texts)."""
     if str(message) not in _SHOWN:
         _SHOWN.add(str(message))
         print(f"warning: {message}", file=sys.stderr)
@@ -49,6 +50,7 @@ def main(argv=None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``), run the command, return its exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    _SHOWN.clear()  # each command says each warning once
     try:
         with warnings.catch_warnings():
             # a warning of ours is a line for the engineer, once, without a source line

@@ -159,7 +159,7 @@ class Solver:
     inner_segments: int = param("-", "segments per nested-pair spring ([thesis] §6.2.2: 8)", 4, 200, default=8, kind=int)
     duration: float = param("s", "simulated time", 0.01, 600.0, default=2.6)
     output_sample_rate: float = param("Hz", "sample rate of the stored time series", 100.0, 1.0e6, default=10000.0)
-    segment_sample_rate: float = param("Hz", "sample rate of the stored per-segment states", 1.0, 1.0e5, default=1000.0)
+    segment_sample_rate: float = param("Hz", "sample rate of the stored per-segment states", 1.0, 1.0e6, default=1000.0)
     friction_scheme: str = field(default="fitted", metadata={
         "doc": "where the implicit friction step applies the law: 'fitted' (exponentially fitted weight, "
                "L-stable), 'backward-euler' or 'trapezoidal' (A-stable only; rings on stiff contacts)"})

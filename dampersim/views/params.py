@@ -15,16 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import warnings
 
 import numpy as np
 
 from dampersim.uploads import decode_upload
-from dampersim.errors import AccuracyWarning, DampersimError, InputError, ParameterError
+from dampersim.errors import DampersimError, InputError, ParameterError
 from dampersim.parameters import default_parameters, dotted_names, dumps_toml, loads_toml, with_updates
 from dampersim.parameters.validation import describe_range
 from dampersim.units import number_text
-from dampersim.solver.linear import check_time_step
+from dampersim.solver.linear import time_step_note
 from dampersim.units import rad_to_deg
 from dampersim.units import parse_number
 from dampersim.views.notices import notice, query_value
@@ -195,13 +194,11 @@ def apply_overrides(base, overrides: dict, notices: list | None = None, source: 
                 v = parse_number(raw)
                 if not (lo <= v <= hi):
                     raise ParameterError(name, raw, f"a value from {number_text(lo)} to {number_text(hi)} on this dashboard")
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", AccuracyWarning)
-                system = check_time_step(with_updates(system, {name: raw}))
-            if notices is not None:
+            system = with_updates(system, {name: raw})
+            note = time_step_note(system)  # refuses an unstable step (ParameterError)
+            if note and name == "solver.time_step" and notices is not None:
                 # a stable step above the accuracy-tested default runs, and the page says so
-                notices.extend(notice(f"Parameter {name} from the {source}: {w.message}")
-                               for w in caught if issubclass(w.category, AccuracyWarning))
+                notices.append(notice(f"Parameter {name} from the {source}: {note}"))
         except ParameterError as exc:
             if notices is not None:
                 shown = raw if isinstance(raw, str) else number_text(raw)
@@ -338,10 +335,19 @@ def parse_uploaded_parameters(contents, filename: str = "parameters.toml"):
     except UnicodeDecodeError:
         raise InputError(f"{name} is not UTF-8 text; accepted is a TOML parameter file") from None
     try:
-        return check_time_step(loads_toml(text))
+        system = loads_toml(text)
+        time_step_note(system)  # refuses an unstable step; a coarse one is noted by accuracy_notices
+        return system
     except ParameterError as exc:
         raise ParameterError(f"{name}: {exc.field}", exc.value, exc.accepted,
                              str(exc).split(" (", 1)[1].rstrip(")") if " (" in str(exc) else "") from None
+
+
+def accuracy_notices(system) -> list:
+    """Notices for a parameter set the page accepted: a time step above the
+    accuracy-tested default runs, with a notice that its accuracy is not checked."""
+    note = time_step_note(system)
+    return [notice(note)] if note else []
 
 
 def parameters_toml(system) -> str:
@@ -364,7 +370,8 @@ def apply_table_edits(params: dict | None, rows: list) -> tuple:
             updates[name] = str(text).strip()
     if not updates:
         return params, current
-    system = check_time_step(with_updates(current, updates))
+    system = with_updates(current, updates)
+    time_step_note(system)  # refuses an unstable step; a coarse one is noted by accuracy_notices
     overrides = dict(params.get("overrides") or {})
     for name in updates:
         overrides[name] = _override_value(system, name)
@@ -440,6 +447,7 @@ __all__ = [
     "params_for_system",
     "parse_uploaded_parameters",
     "parameters_toml",
+    "accuracy_notices",
     "apply_table_edits",
     "display_value",
     "control_params",
