@@ -325,8 +325,8 @@ def test_stored_parameter_set_is_validated_once(pages, monkeypatch):
 
     set_id = store_parameter_set(with_updates(default_parameters(), {"inertias.primary": 0.3}))
     calls = []
-    real = P.check_time_step
-    monkeypatch.setattr(P, "check_time_step", lambda s: calls.append(1) or real(s))
+    real = P.time_step_note
+    monkeypatch.setattr(P, "time_step_note", lambda s: calls.append(1) or real(s))
     real_load = P.loads_toml
     monkeypatch.setattr(P, "loads_toml", lambda t: calls.append(2) or real_load(t))
     query = {"set": set_id, "inertias.secondary": "0.05"}

@@ -19,7 +19,7 @@ from dampersim.solver.kernels.integrate import integrate, step, workspace
 from dampersim.solver.layout import NREC, S_SIZE, build_layout, initial_state
 from dampersim.units import rpm_to_rad_s
 
-N = 3000
+N = 6000  # 0.05 s at the default step: the ramps end and the hardstop closes
 
 
 def _cases():
