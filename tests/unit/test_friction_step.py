@@ -56,11 +56,11 @@ def step(sysd, v, v0=None, first=None):
     v0 = v.copy() if v0 is None else v0
     F.contact_laws(v, v0, sysd["FN"], sysd["P"], sysd["CI"], sysd["CF"], 1.0 / J, DT, W, XS, MU, DMU, TH)
     vb = v.copy()
-    F.friction_step(v, v0, J, sysd["CI"], sysd["SG"], sysd["PG"], DT, W, HS)
+    ef = F.friction_step(v, v0, J, sysd["CI"], sysd["SG"], sysd["PG"], DT, W, HS)
     if first is not None:
         first.append(W[0] + W[1] * (v[3] - v[1]))
     diss = F.newton_friction(v, vb, v0, J, sysd["FN"], sysd["P"], sysd["CI"], sysd["CF"], sysd["SG"], sysd["PG"],
-                             DT, W, HS, XS, MU, DMU, TH, SK, ML, stats)
+                             DT, W, HS, XS, MU, DMU, TH, SK, ML, stats, ef)
     s = v[3] - v[1]
     return W[0] + W[1] * s, diss
 

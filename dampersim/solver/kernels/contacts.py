@@ -92,7 +92,7 @@ def hardstop_release(q, v, P, HS):
 
 
 @njit(**LEAF)
-def hardstop_dissipation(P, dt, HS, v_before, v):
+def hardstop_dissipation(dt, HS, v_before, v):
     """Energy [J] the hardstop contacts removed in the step: the torque of the implicit
     solve, c w_end with c = damping + k dt for a closed contact (or the cancelling torque
     of an opened one), times the mid-step windup speed, which is the kinetic energy it

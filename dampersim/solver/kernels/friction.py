@@ -211,26 +211,20 @@ def refine_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU, TH, SK, ML, tol, first, fi
     re-solve cannot leave the law's bounds, whatever the linearisation's error."""
     g1, g2, g3, g4, g5, g6 = P[P_G1], P[P_G2], P[P_G3], P[P_G4], P[P_G5], P[P_G6]
     nc = CI.shape[0]
-    # two loops rather than a branch per contact: the first check runs every step
-    if first:
-        for c in range(nc):
-            a = np.uintp(CI[c, 0])
-            b = np.uintp(CI[c, 1])
-            r = CF[c, 1]
-            sk = v[a] - v[b]
-            SK[c] = sk
-            ML[c] = MU[c] + DMU[c] * (sk - (v0[a] - v0[b])) * r
+    for c in range(nc):
+        a = np.uintp(CI[c, 0])
+        b = np.uintp(CI[c, 1])
+        r = CF[c, 1]
+        s0 = v0[a] - v0[b]
+        sk = v[a] - v[b]
+        SK[c] = sk
+        if first:
+            ML[c] = MU[c] + DMU[c] * (sk - s0) * r
             XS[c] = sk * r
-    else:
-        for c in range(nc):
-            a = np.uintp(CI[c, 0])
-            b = np.uintp(CI[c, 1])
-            r = CF[c, 1]
-            sk = v[a] - v[b]
-            SK[c] = sk
+        else:
             cn = CF[c, 0] * FN[a] * r
             ML[c] = (W[2 * c] + W[2 * c + 1] * sk) / cn if cn != 0.0 else np.nan
-            XS[c] = ((1.0 - TH[c]) * (v0[a] - v0[b]) + TH[c] * sk) * r
+            XS[c] = ((1.0 - TH[c]) * s0 + TH[c] * sk) * r
     _laws(XS, MU, DMU, g1, g2, g3, g4, g5, g6)
     err = 0.0
     for c in range(nc):
@@ -397,10 +391,10 @@ def friction_step(v, v0, J, CI, SG, PG, dt, W, HS):
 
 
 @njit(**LEAF)
-def newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU, TH, SK, ML, stats):
+def newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU, TH, SK, ML, stats, ef):
     """Newton iterations of a friction step already solved once (:func:`friction_step`
-    on the linearisation of :func:`contact_laws`); returns the step's friction
-    dissipation [J].
+    on the linearisation of :func:`contact_laws`, which returned its dissipation ef
+    [J]); returns the step's friction dissipation [J].
 
     vb: the speeds before the friction solve, from which every re-solve restarts.
     While :func:`refine_laws` finds the law off by more than P[P_FR_TOL] (friction
@@ -410,7 +404,6 @@ def newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, W, HS, XS, MU, DMU,
     counts the re-solves."""
     tol = P[P_FR_TOL]
     maxit = int(P[P_FR_ITER])
-    ef = friction_dissipation(v, CI, dt, W)
     for it in range(maxit + 1):
         if not refine_laws(v, v0, FN, P, CI, CF, W, XS, MU, DMU, TH, SK, ML, tol, it == 0, it == maxit):
             break

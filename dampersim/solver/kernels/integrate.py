@@ -210,14 +210,14 @@ def step(t, tin, q, v, vprev, S, P, SF, SI, J, RIG, CI, CF, SG, PG, row, segrow,
     closed = hs_on and hardstop_coefficients(q, P, dt, HS)
     for i in range(ndof):
         vb[i] = v[i]
-    friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
+    ef = friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
     if closed and hardstop_release(q, v, P, HS):
         for i in range(ndof):
             v[i] = vb[i]
-        friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
-    ef = newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU, TH, SK, ML, stats)
+        ef = friction_step(v, v0, J, CI, SG, PG, dt, FW, HS)
+    ef = newton_friction(v, vb, v0, J, FN, P, CI, CF, SG, PG, dt, FW, HS, XS, MU, DMU, TH, SK, ML, stats, ef)
     if closed:
-        eh = hardstop_dissipation(P, dt, HS, vb, v)
+        eh = hardstop_dissipation(dt, HS, vb, v)
         e_damp += eh
         e_hs += eh
     e_fric += ef
