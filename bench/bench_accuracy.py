@@ -14,6 +14,7 @@ or 32/12-segment reference, tolerance 1 % / 2 % or twice the order's physical sp
     python bench/bench_accuracy.py --grid segments --segments 18/8,24/10
     python bench/bench_accuracy.py --grid step --set solver.friction_scheme=trapezoidal
     python bench/bench_accuracy.py --grid newton   # friction re-solves per point (~30 s)
+    python bench/bench_accuracy.py --energy        # energy balance across the knee only
 """
 
 from __future__ import annotations
@@ -35,6 +36,17 @@ P = ds.default_parameters()
 def order2(system, rpm):
     ex = ds.OrderSum(speed=rpm_to_rad_s(rpm), mean_torque=200.0, orders=((2, 300.0, 0.0),))
     return ds.simulate(system, ex, record_segments=False).order_amplitudes()[1][1]
+
+
+def knee_energy():
+    """Energy balance at a point whose outer hardstop closes every cycle (1500 rpm,
+    320 +- 300 N m): residual against friction plus contact dissipation [J]."""
+    ex = ds.OrderSum(speed=rpm_to_rad_s(1500), mean_torque=320.0, orders=((2, 300.0, 0.0),))
+    res = ds.simulate(P, ex, record_segments=False)
+    e = res.energy
+    print(f"energy across the knee: residual {res.energy_residual()[-1]:.3f} J against "
+          f"{e['friction'][-1] + e['hardstop'][-1]:.1f} J of friction ({e['friction'][-1]:.1f} J) and hardstop "
+          f"contact ({e['hardstop'][-1]:.1f} J) dissipation")
 
 
 def grid(kind, candidates, workers, overrides=None):
@@ -132,6 +144,7 @@ def _cli():
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--energy", action="store_true", help="only the energy balance across the knee")
     ap.add_argument("--grid", choices=("step", "segments", "newton"),
                     help="run the accuracy grid instead ('newton': friction re-solve counts at the grid's points)")
     ap.add_argument("--steps", default=None, help="candidate steps [s], comma-separated (a/b allowed)")
@@ -140,8 +153,12 @@ def _cli():
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="parameter override of the candidates (not of the reference), repeatable")
     a = ap.parse_args()
+    if a.energy:
+        knee_energy()
+        return
     if a.grid is None:
         main()
+        knee_energy()
         return
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
     if a.grid == "newton":
