@@ -52,6 +52,7 @@ def cmd_synth(args) -> int:
         prepare_output(args.truth, "file", option="--truth")
     doc = synthesize(args.out, campaign=args.campaign, effects=effects, perturb=args.perturb, noise_db=args.noise_db,
                      seed=args.seed, truth=args.truth, base=base, workers=args.workers, record=args.record,
+                     daq=getattr(args, "daq", "none"),
                      points=[x.strip() for x in args.points.split(",") if x.strip()] if args.points else None)
     print(f"wrote {len(doc['points'])} test points to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
     return 0
@@ -130,6 +131,9 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--record", type=float, default=1.25, help="record length of torsional points [s]")
     p.add_argument("--workers", type=int, default=1, help="processes")
     p.add_argument("--points", help="comma-separated test-point ids to keep (e.g. tc_1200,map_900_50); default all")
+    p.add_argument("--daq", default="none", choices=("none", "random"),
+                   help="acquisition chain: none (default) or random (gains, offsets, drift, mains hum, anti-alias "
+                        "filter, channel skew, speed ripple drawn from --seed; written to --truth)")
     p.set_defaults(func=cmd_synth)
 
     p = subparsers.add_parser("diagnose", help="find, name and add the effect the model is missing")

@@ -5,6 +5,13 @@ estimated parameters of [thesis] §6.1 are perturbed, springs are discretised mo
 and integrated with a smaller step, hidden effects may be switched on, and the recorded
 channels carry sensor noise and small gain errors. The truth is written only to a
 separate file, never into the campaign folder.
+
+With ``daq`` the channels also pass an acquisition chain
+(:mod:`dampersim.discrepancy.daq`: gains, offsets, drift, mains hum, anti-alias filter,
+channel skew, speed ripple), applied to the whole simulated record from its start at the
+simulation's sample rate before it is cut and sampled; its gains then replace the plain
+channel gain errors. Random effect shapes, effect pairs and truths outside the effect
+library are built by :mod:`dampersim.discrepancy.truths`.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ import numpy as np
 
 from dampersim.discrepancy.campaign import MeasuredPoint
 from dampersim.discrepancy.campaign_write import write_campaign
+from dampersim.discrepancy.daq import DaqCorruption, corrupt, random_corruption
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.errors import InputError
 from dampersim.units import rpm_to_rad_s
@@ -133,7 +141,7 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
 
 
 def _simulate_truth(args):
-    system, pid, kind, rpm, tq, seed, record, fs, noise, gains = args
+    system, pid, kind, rpm, tq, seed, record, fs, noise, gains, daq, stream = args
 
     rng = np.random.default_rng(seed)
     speed = rpm_to_rad_s(rpm)
@@ -153,10 +161,14 @@ def _simulate_truth(args):
     t = t[sl]
     g_in, g_out = gains
     n = len(t)
-    tin = g_in * res.input_torque[w][sl] + noise * rng.standard_normal(n)
-    tout = g_out * res.output_torque[w][sl] + noise * rng.standard_normal(n)
-    w_in = res.speed_primary[w][sl] * 30 / np.pi + 0.5 * rng.standard_normal(n)
-    w_out = res.speed_motor[w][sl] * 30 / np.pi + 0.5 * rng.standard_normal(n)
+    ch = {"input_torque_nm": res.input_torque, "output_torque_nm": res.output_torque,
+          "input_speed_rpm": res.speed_primary * 30 / np.pi, "output_speed_rpm": res.speed_motor * 30 / np.pi}
+    if daq is not None:  # the DAQ records from the start of the run, before the record is cut
+        ch = corrupt({"time_s": res.t, **ch}, res.sample_rate, daq, stream)
+    tin = g_in * ch["input_torque_nm"][w][sl] + noise * rng.standard_normal(n)
+    tout = g_out * ch["output_torque_nm"][w][sl] + noise * rng.standard_normal(n)
+    w_in = ch["input_speed_rpm"][w][sl] + 0.5 * rng.standard_normal(n)
+    w_out = ch["output_speed_rpm"][w][sl] + 0.5 * rng.standard_normal(n)
     windup = None
     if kind == "ramp":
         windup = res.windup_total[w][sl] + np.radians(0.02) * rng.standard_normal(n)
@@ -165,16 +177,40 @@ def _simulate_truth(args):
                          windup=windup)
 
 
+#: seed stream of a "random" acquisition chain (apart from the truth's own draws)
+DAQ_STREAM = 7919
+
+
+def daq_setting(daq, seed: int = 0, sample_rate: float = 5000.0):
+    """The acquisition chain ``daq`` names: None or "none" -> None; "random" -> one drawn by
+    :func:`~dampersim.discrepancy.daq.random_corruption` from ``seed`` for records at
+    ``sample_rate`` [Hz]; a DaqCorruption or its ``to_dict`` form as it is."""
+    if daq is None or isinstance(daq, DaqCorruption):
+        return daq
+    if isinstance(daq, dict):
+        return DaqCorruption.from_dict(daq)
+    if daq == "none":
+        return None
+    if daq == "random":
+        return random_corruption(np.random.default_rng([int(seed), DAQ_STREAM]), sample_rate)
+    raise InputError(f"--daq {daq!r}: accepted is 'random' or 'none'")
+
+
 def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noise_db: float = 0.0, seed: int = 0,
                truth=None, base=None, updates=None, record: float = 1.25, sample_rate: float = 5000.0,
-               ramp_sample_rate: float = 1000.0, points=None, workers: int = 1, gain_error: float = 0.01) -> dict:
+               ramp_sample_rate: float = 1000.0, points=None, workers: int = 1, gain_error: float = 0.01,
+               daq=None) -> dict:
     """Write a synthetic campaign to folder ``out``; returns the truth (also written to
     ``truth`` if given, which must lie outside ``out``).
 
-    effects: [(name, {param: value})]; perturb: relative range of the estimated-parameter
-    perturbation; noise_db: sensor noise RMS in dB re 1 N m on both torque channels;
-    gain_error: RMS relative gain error of each torque channel; points: optional subset of
-    :func:`plan` ids.
+    effects: [(name, {param: value})], several at once allowed; perturb: relative range of
+    the estimated-parameter perturbation; updates: explicit truth parameters (dotted name
+    -> value), e.g. a rig shaft or the friction law; noise_db: sensor noise RMS in dB re
+    1 N m on both torque channels; gain_error: RMS relative gain error of each torque
+    channel (not drawn with a ``daq``, whose gains replace it); points: optional subset of
+    :func:`plan` ids; daq: the acquisition chain (:func:`daq_setting`: None or "none" for
+    none, "random" for one drawn from ``seed``, or a
+    :class:`~dampersim.discrepancy.daq.DaqCorruption`).
     """
 
     if truth is not None:
@@ -193,11 +229,15 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
                              f"(accepted ids look like {pts[0][0]}, see dampersim.discrepancy.synth.plan)")
         pts = [p for p in pts if p[0] in keep]
     noise = 10.0 ** (noise_db / 20.0)
-    gains = tuple(float(1.0 + gain_error * rng.standard_normal()) for _ in range(2))
+    daq = daq_setting(daq, seed, sample_rate)
+    if daq is None:
+        gains = tuple(float(1.0 + gain_error * rng.standard_normal()) for _ in range(2))
+    else:
+        gains = (1.0, 1.0)
     tasks = []
     for i, (pid, kind, rpm, tq) in enumerate(pts):
         fs = sample_rate if kind == "torsional" else ramp_sample_rate
-        tasks.append((system, pid, kind, rpm, tq, seed * 1000 + i, record, fs, noise, gains))
+        tasks.append((system, pid, kind, rpm, tq, seed * 1000 + i, record, fs, noise, gains, daq, i))
     if workers > 1 and len(tasks) > 1:
         with process_pool(workers) as pool:
             measured = list(pool.map(_simulate_truth, tasks))
@@ -212,7 +252,9 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
                     for n, _ in effects],
         "perturbed": applied,
         "noise_rms_nm": noise,
-        "channel_gains": {"input": gains[0], "output": gains[1]},
+        "channel_gains": ({"input": gains[0], "output": gains[1]} if daq is None or daq.gains is None else
+                          {"input": daq.gains.input, "output": daq.gains.output}),
+        "daq": None if daq is None else daq.to_dict(),
         "points": [p[0] for p in pts],
     }
     if truth is not None:
@@ -220,4 +262,4 @@ def synthesize(out, campaign: str = "all", effects=(), perturb: float = 0.1, noi
     return doc
 
 
-__all__ = ["CAMPAIGNS", "EngineDrive", "plan", "truth_system", "synthesize", "ESTIMATED"]
+__all__ = ["CAMPAIGNS", "EngineDrive", "plan", "truth_system", "synthesize", "daq_setting", "ESTIMATED"]
