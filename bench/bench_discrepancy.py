@@ -1,29 +1,65 @@
 """Benchmark of the discrepancy workflow on synthetic campaigns with hidden effects.
 
-Cases: every effect x magnitudes x seeds (with noise and parameter perturbation),
-no-effect controls and pure mis-calibration controls. For each case: synth -> diagnose,
-then top-1 identification, gap reduction, recovered magnitude and wall time.
+Two case matrices (``--matrix``):
 
-    python bench/bench_discrepancy.py --out bench-results.json            # full matrix (hours)
-    python bench/bench_discrepancy.py --reduced --out bench-results.json  # one magnitude, one seed
+hard (default)
+    * every effect at four magnitudes (subtle = half the weak one, or the weak one's
+      equivalent for clutch capacity and transducer cut-off, then the library's weak,
+      typical and strong ones) with its shape parameters drawn at random
+      (dampersim/discrepancy/truths.py), ``--seeds`` of each;
+    * two-effect cases: each pair of ``truths.PAIRS`` at the typical magnitude, ``--seeds``
+      of each;
+    * 22 controls: 8 with no change but the usual parameter perturbation, 10 with one or
+      two calibration groups 10-30 % off, 4 with the stiff rig parts changed;
+    * 12 out-of-library cases: gearbox shaft stiffness or inertia 20-30 % off, friction
+      laws of another shape, another friction split, a retuned output motor.
+    Every case has a random DAQ corruption (dampersim/discrepancy/daq.py), sensor noise
+    of -6 to +3 dB re 1 N m, 10 % parameter perturbation, ``--points`` torsional points
+    and ``--ramps`` hysteresis ramps (default 1). The groups are interleaved, so that the
+    first cases of a run already mix every kind.
+classic
+    The matrix before: every effect x three magnitudes x seeds at the library's default
+    shapes, no-effect and mis-calibration controls, no DAQ corruption, no ramps
+    (``--reduced``, ``--mags`` and ``--only no_effect|miscalibration`` as before).
 
-The full matrix is 8 x 3 x 3 hidden-effect cases plus controls; each case diagnoses a
-campaign of --points torsional test points.
+Each finished case is appended to ``--out`` as one JSON line at once (a killed run keeps
+its work); ``--resume`` skips the cases already in the file. A line holds the case, its
+truth (effects with all parameters, parameter changes, DAQ settings, noise) and the
+diagnosis's figures. The summary (dampersim/discrepancy/benchmark.py) is printed as a
+table at the end, or alone with ``--summary``.
+
+    python bench/bench_discrepancy.py --out bench.jsonl                     # hard matrix (a day)
+    python bench/bench_discrepancy.py --out bench.jsonl --resume            # continue it
+    python bench/bench_discrepancy.py --list                                # the cases, nothing run
+    python bench/bench_discrepancy.py --only pendulum_absorber --limit 1 --points 6 --record 0.6 --ramps 0
+    python bench/bench_discrepancy.py --summary bench.jsonl                 # figures of a file
+    python bench/bench_discrepancy.py --matrix classic --only miscalibration --out classic.jsonl
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
+import os
 import tempfile
 import time
+import traceback
+import zlib
 
 import numpy as np
 
+from dampersim.discrepancy import truths
+from dampersim.discrepancy.benchmark import summary, summary_table
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import EFFECTS, NAMES
 from dampersim.discrepancy.synth import plan, synthesize
+from dampersim.jsonsafe import jsonable
+
+#: diagnosis keys kept per case (plus every gap_*_nm key)
+KEEP = ("verdict", "effect", "effects", "effect_parameters", "posterior", "detectability", "outliers",
+        "recommended_points", "likelihood", "calibration", "ranking", "noise_floor_nm", "simulations", "wall_time_s")
 
 MISCAL = (
     {"outer.spring.stiffness": 127.0 * 1.15},
@@ -32,90 +68,201 @@ MISCAL = (
     {"friction.outer.alpha": 0.15},
     {"inertias.primary": 0.22, "inertias.secondary": 0.054},
 )
+#: hard matrix: controls and out-of-library cases (kind, count)
+HARD_CONTROLS = (("none", 8), ("calibration", 10), ("rig_stiff_parts", 4))
+HARD_OUT_OF_LIBRARY = (("rig_shaft", 3), ("rig_inertia", 2), ("friction_shape", 3), ("friction_split", 2),
+                       ("motor_control", 2))
+NOISE_DB = (-6.0, 3.0)  # sensor noise range of the hard matrix [dB re 1 N m]
+PERTURB = 0.1  # estimated-parameter perturbation of the hard matrix (synth's default)
 
 
-def cases(reduced: bool, seeds: int, mags=None):
+def _case(cid, kind, group, truth, seed, perturb, noise_db, daq, level=None):
+    return {"id": cid, "kind": kind, "group": group, "level": level, "seed": int(seed), "perturb": perturb,
+            "noise_db": float(noise_db), "daq": daq, "spec": truth}
+
+
+def _seed_of(matrix_seed: int, cid: str) -> int:
+    return zlib.crc32(f"{matrix_seed}/{cid}".encode()) % 1_000_000
+
+
+def hard_cases(seeds: int = 2, matrix_seed: int = 0) -> list:
+    """The hard matrix (see the module doc), interleaved across its groups."""
+
+    def make(cid, kind, group, build, level=None):
+        seed = _seed_of(matrix_seed, cid)
+        rng = np.random.default_rng([matrix_seed, seed])
+        truth = build(rng)
+        noise = float(rng.uniform(*NOISE_DB))
+        return _case(cid, kind, group, truth, seed, PERTURB, noise, "random", level)
+
+    groups = []
+    for name in NAMES:
+        groups.append([make(f"effect/{name}/{lv}/s{s}", "effect", name,
+                            lambda rng, n=name, lv=lv: truths.single(n, lv, rng), lv)
+                       for s in range(seeds) for lv in reversed(truths.LEVELS)])
+    groups.append([make(f"pair/{a}+{b}/s{s}", "pair", f"{a}+{b}", lambda rng, a=a, b=b: truths.pair(a, b, rng), "typical")
+                   for s in range(seeds) for a, b in truths.PAIRS])
+    for kind, n in HARD_CONTROLS:
+        groups.append([make(f"control/{kind}/{i}", "control", kind, lambda rng, k=kind: truths.control(k, rng))
+                       for i in range(n)])
+    for kind, n in HARD_OUT_OF_LIBRARY:
+        groups.append([make(f"ool/{kind}/{i}", "out_of_library", kind, lambda rng, k=kind: truths.out_of_library(k, rng))
+                       for i in range(n)])
+    return [c for tier in itertools.zip_longest(*groups) for c in tier if c is not None]
+
+
+def classic_cases(reduced: bool = False, seeds: int = 3, mags=None) -> list:
+    """The matrix before the hard one: library default shapes, no DAQ, no ramps."""
     mags = mags if mags is not None else ((1,) if reduced else (0, 1, 2))
+    out = []
     for name in NAMES:
         e = EFFECTS[name]
         for mi in mags:
             for seed in range(1 if reduced else seeds):
-                yield {"kind": "effect", "effect": name, "values": {e.magnitude: e.magnitudes[mi]}, "seed": seed}
+                truth = {"effects": [[name, {e.magnitude: e.magnitudes[mi]}]], "updates": {},
+                         "description": f"{name} magnitude {mi}"}
+                out.append(_case(f"classic/{name}/m{mi}/s{seed}", "effect", name, truth, seed, 0.05, 0.0, None,
+                                 truths.LEVELS[mi + 1]))
     for seed in range(2 if reduced else 5):
-        yield {"kind": "no_effect", "effect": None, "values": {}, "seed": 100 + seed}
+        out.append(_case(f"classic/no_effect/{seed}", "control", "no_effect",
+                         {"effects": [], "updates": {}, "description": "no effect"}, 100 + seed, 0.05, 0.0, None))
     for i, upd in enumerate(MISCAL[:2] if reduced else MISCAL):
-        yield {"kind": "miscalibration", "effect": None, "values": {}, "updates": upd, "seed": 200 + i}
-
-
-def run_case(case, n_points: int, record: float, workers: int) -> dict:
-    ids = [p[0] for p in plan("all") if p[1] == "torsional"]
-    step = max(1, len(ids) // n_points)
-    ids = ids[::step][:n_points]
-    with tempfile.TemporaryDirectory() as d:
-        eff = [(case["effect"], case["values"])] if case["effect"] else []
-        synthesize(d, effects=eff, perturb=0.0 if case["kind"] == "miscalibration" else 0.05, noise_db=0.0,
-                   seed=case["seed"], updates=case.get("updates"), points=ids, record=record, workers=workers)
-        t0 = time.perf_counter()
-        diag = diagnose(read_campaign(d), workers=workers)
-        wall = time.perf_counter() - t0
-    out = dict(case)
-    out.update({k: v for k, v in diag.to_json().items() if k in (
-        "verdict", "effect_parameters", "noise_floor_nm", "gap_before_nm", "gap_calibrated_nm", "gap_after_nm")})
-    out["named"] = diag.effect
-    out["top"] = diag.ranking[0]["effect"] if diag.ranking else None
-    out["wall_s"] = wall
-    out["simulations"] = diag.simulations
-    if case["effect"]:
-        mag = EFFECTS[case["effect"]].magnitude
-        got = diag.effect_parameters.get(mag) if diag.effect == case["effect"] else None
-        out["magnitude_error"] = None if got is None else abs(got / case["values"][mag] - 1.0)
+        out.append(_case(f"classic/miscalibration/{i}", "control", "miscalibration",
+                         {"effects": [], "updates": dict(upd), "description": f"miscalibration {upd}"}, 200 + i, 0.0,
+                         0.0, None))
     return out
 
 
-def summary(rows) -> dict:
-    eff = [r for r in rows if r["kind"] == "effect"]
-    ctrl = [r for r in rows if r["kind"] != "effect"]
-    strong = [r for r in eff if r["gap_calibrated_nm"] >= 3 * r["noise_floor_nm"]]
-    return {
-        "cases": len(rows),
-        "effect_cases": len(eff),
-        "effect_cases_above_3x_floor": len(strong),
-        "top1_identified_above_3x_floor": sum(r["named"] == r["effect"] for r in strong),
-        "augmented_gap_le_1p5_floor": sum(r["gap_after_nm"] <= 1.5 * r["noise_floor_nm"] for r in strong if r["named"] == r["effect"]),
-        "augmented_gap_70pct_below_calibrated": sum(r["gap_after_nm"] <= 0.3 * r["gap_calibrated_nm"] for r in strong if r["named"] == r["effect"]),
-        "controls": len(ctrl),
-        "controls_no_missing_effect": sum(r["verdict"] == "no_missing_effect" for r in ctrl),
-        "magnitude_within_20pct": sum((r.get("magnitude_error") is not None and r["magnitude_error"] <= 0.2) for r in eff),
-        "max_wall_s": max((r["wall_s"] for r in rows), default=0.0),
-    }
+def selected(cases, only=None) -> list:
+    """Cases whose kind, group, level, hidden effect or id matches one of ``only``."""
+    if not only:
+        return list(cases)
+    keep = set(only)
+
+    def hit(c):
+        names = {n for n, _ in c["spec"]["effects"]}
+        return bool(keep & ({c["kind"], c["group"], c["level"]} | names)) or any(t in c["id"] for t in keep if "/" in t)
+
+    return [c for c in cases if hit(c)]
+
+
+def point_ids(n_points: int, n_ramps: int) -> list:
+    """``n_points`` torsional ids spread over the plan, then ``n_ramps`` ramps (middle speed first)."""
+    pts = plan("all")
+    ids = [p[0] for p in pts if p[1] == "torsional"]
+    ids = ids[::max(1, len(ids) // n_points)][:n_points]
+    ramps = [p[0] for p in pts if p[1] == "ramp"]
+    ramps = sorted(ramps, key=lambda r: abs(float(r.split("_")[1]) - 1500.0))
+    return ids + ramps[:n_ramps]
+
+
+def run_case(case, n_points: int, record: float, n_ramps: int, workers: int) -> dict:
+    """Synthesise the case's campaign, diagnose it, return its JSON line."""
+    ids = point_ids(n_points, n_ramps)
+    spec = case["spec"]
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as d:
+        camp = os.path.join(d, "campaign")
+        doc = synthesize(camp, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
+                         noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
+                         points=ids, record=record, workers=workers, daq=case["daq"])
+        t0 = time.perf_counter()
+        diag = jsonable(diagnose(read_campaign(camp), workers=workers).to_json())
+        wall = time.perf_counter() - t0
+    truth = dict(doc)
+    truth.update({"description": spec["description"], "updates": spec["updates"], "level": case["level"]})
+    row = {k: case[k] for k in ("id", "kind", "group", "level", "seed", "perturb", "noise_db")}
+    row.update({"truth": truth, "campaign": {"points": ids, "record_s": record}})
+    row.update({k: diag.get(k) for k in KEEP})
+    row.update({k: v for k, v in diag.items() if k.startswith("gap_")})
+    row["wall_s"] = wall
+    row["case_wall_s"] = time.perf_counter() - t_start
+    return jsonable(row)
+
+
+def read_lines(path) -> list:
+    """The JSON lines of ``path`` ([] if it does not exist); a torn last line is skipped."""
+    if not os.path.exists(path):
+        return []
+    rows = []
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            line = line.strip()
+            if not line:
+                continue
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return rows
+
+
+def append_line(path, row) -> None:
+    """Append ``row`` as one JSON line and flush it to disk (after a newline if a killed
+    run left a torn last line, which :func:`read_lines` then skips)."""
+    torn = False
+    if os.path.exists(path) and os.path.getsize(path) > 0:
+        with open(path, "rb") as fh:
+            fh.seek(-1, os.SEEK_END)
+            torn = fh.read(1) != b"\n"
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(("\n" if torn else "") + json.dumps(row, allow_nan=False) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", default="bench-discrepancy.json")
-    ap.add_argument("--reduced", action="store_true", help="one magnitude and one seed per effect, fewer controls")
-    ap.add_argument("--only", nargs="*", help="effect names (and/or 'no_effect', 'miscalibration') to run")
-    ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--mags", help="magnitude indices to run, e.g. '2' (0 weak, 1 typical, 2 strong)")
+    ap.add_argument("--matrix", choices=("hard", "classic"), default="hard")
+    ap.add_argument("--out", default="bench-discrepancy.jsonl", help="JSON lines, one per finished case")
+    ap.add_argument("--resume", action="store_true", help="skip the cases already in --out (else --out must not exist)")
+    ap.add_argument("--only", nargs="*", help="kinds (effect, pair, control, out_of_library), groups (an effect, "
+                    "'calibration', 'rig_shaft', ...; classic: 'no_effect', 'miscalibration'), levels or case ids")
+    ap.add_argument("--limit", type=int, help="run at most this many cases")
+    ap.add_argument("--list", action="store_true", help="print the cases and their truths, run nothing")
+    ap.add_argument("--summary", metavar="FILE", help="print the figures of a results file, run nothing")
+    ap.add_argument("--seeds", type=int, default=None, help="seeds per effect (hard: 2, classic: 3)")
+    ap.add_argument("--matrix-seed", type=int, default=0, help="hard: seed of the random truths and DAQ settings")
+    ap.add_argument("--reduced", action="store_true", help="classic: one magnitude and one seed, fewer controls")
+    ap.add_argument("--mags", help="classic: magnitude indices, e.g. '2' (0 weak, 1 typical, 2 strong)")
     ap.add_argument("--points", type=int, default=12, help="torsional test points per campaign")
+    ap.add_argument("--ramps", type=int, default=None, help="hysteresis ramps per campaign (hard: 1, classic: 0)")
     ap.add_argument("--record", type=float, default=1.0, help="record length [s]")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
-    rows = []
-    mags = tuple(int(x) for x in a.mags.split(",")) if a.mags else None
-    for case in cases(a.reduced, a.seeds, mags):
-        if a.only and case["kind"] not in a.only and case["effect"] not in a.only:
-            continue
-        r = run_case(case, a.points, a.record, a.workers)
-        rows.append(r)
-        print(json.dumps({k: r[k] for k in ("kind", "effect", "verdict", "named", "gap_calibrated_nm", "gap_after_nm",
-                                            "noise_floor_nm", "wall_s")}), flush=True)
-        with open(a.out, "w") as fh:
-            json.dump({"rows": rows, "summary": summary(rows), "args": vars(a)}, fh, indent=1, default=float)
-    print(json.dumps(summary(rows), indent=1))
+    if a.summary:
+        print(summary_table(summary(read_lines(a.summary))))
+        return 0
+    if a.matrix == "hard":
+        cases = hard_cases(a.seeds or 2, a.matrix_seed)
+    else:
+        mags = tuple(int(x) for x in a.mags.split(",")) if a.mags else None
+        cases = classic_cases(a.reduced, a.seeds or 3, mags)
+    cases = selected(cases, a.only)
+    ramps = a.ramps if a.ramps is not None else (1 if a.matrix == "hard" else 0)
+    if a.list:
+        for c in cases[:a.limit]:
+            print(f"{c['id']:48s} seed {c['seed']:6d} noise {c['noise_db']:+.1f} dB  {c['spec']['description']}")
+        print(f"{len(cases[:a.limit])} cases")
+        return 0
+    done = {r.get("id") for r in read_lines(a.out) if not r.get("error")}
+    if done and not a.resume:
+        ap.error(f"--out {a.out} already holds {len(done)} finished cases: pass --resume to continue it, "
+                 "or name another file")
+    todo = [c for c in cases if c["id"] not in done][:a.limit]
+    print(f"{len(todo)} cases to run ({len(cases) - len(todo)} skipped)", flush=True)
+    for c in todo:
+        try:
+            r = run_case(c, a.points, a.record, ramps, a.workers)
+        except Exception as exc:  # noqa: BLE001 - one failed case must not end the run
+            r = {"id": c["id"], "kind": c["kind"], "error": f"{type(exc).__name__}: {exc}",
+                 "traceback": traceback.format_exc(limit=5)}
+        append_line(a.out, r)
+        print(json.dumps({k: r.get(k) for k in ("id", "verdict", "effect", "gap_calibrated_nm", "noise_floor_nm",
+                                                "wall_s", "error")}), flush=True)
+    print(summary_table(summary(read_lines(a.out))))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
-
-_ = np
+    raise SystemExit(main())

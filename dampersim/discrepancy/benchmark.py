@@ -1,0 +1,196 @@
+"""Figures of the discrepancy benchmark, computed from its JSON lines.
+
+``bench/bench_discrepancy.py`` writes one JSON object per finished case. Each row holds
+``id``, ``kind`` (``effect``: one hidden effect; ``pair``: two; ``control``: none, at most
+a change the calibration can absorb; ``out_of_library``: a change no library effect
+describes), ``truth`` (at least ``effects``: [{name, parameters}]) and the diagnosis's
+keys (``verdict``, ``effect``, ``effects``, ``posterior``, ``detectability``,
+``likelihood``, ``noise_floor_nm``, ``gap_*_nm``, ...). A row with ``error`` is a case
+whose run failed. Keys a diagnosis does not have are read as absent, so that rows written
+before the diagnosis reported a posterior still count where they can.
+
+:func:`summary` gives the figures; :func:`summary_table` prints them.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+
+from dampersim.discrepancy.effects import EFFECTS
+
+KINDS = ("effect", "pair", "control", "out_of_library")
+#: posterior probability at which a named model counts as claimed
+CLAIM_PROBABILITY = 0.9
+
+
+def latest(rows) -> tuple[list, int]:
+    """(the last successful row of every case id in order of first appearance, number of
+    ids that only failed)."""
+    good, failed, order = {}, set(), []
+    for r in rows:
+        cid = r.get("id")
+        if cid not in order:
+            order.append(cid)
+        if r.get("error"):
+            failed.add(cid)
+        else:
+            good[cid] = r
+    return [good[c] for c in order if c in good], len([c for c in order if c in failed and c not in good])
+
+
+def true_effects(row) -> dict:
+    """{name: parameters} of the effects hidden in a row's truth."""
+    return {e["name"]: dict(e.get("parameters") or {}) for e in (row.get("truth") or {}).get("effects") or ()}
+
+
+def named(row) -> list:
+    """Names of the effects the diagnosis adopted: its ``effects`` list, else ``effect``."""
+    effs = row.get("effects")
+    if isinstance(effs, list) and effs:
+        return [e.get("name") for e in effs if isinstance(e, dict) and e.get("name")]
+    return [row["effect"]] if row.get("effect") else []
+
+
+def top_model(row) -> str:
+    """The model with the highest posterior (``none``, an effect, or ``a+b``); without a
+    posterior the adopted effect(s) (``none`` for none)."""
+    post = row.get("posterior") or {}
+    vals = {k: float(v) for k, v in post.items() if v is not None and math.isfinite(float(v))}
+    if vals:
+        return max(vals, key=vals.get)
+    return "+".join(named(row)) or "none"
+
+
+def claimed(row, p: float = CLAIM_PROBABILITY):
+    """True when a model naming an effect has posterior >= ``p``; None without a posterior."""
+    post = row.get("posterior")
+    if not post:
+        return None
+    return any(k != "none" and v is not None and float(v) >= p for k, v in post.items())
+
+
+def interval(row, name: str, parameter: str):
+    """[low, high] the diagnosis reports for ``parameter`` of effect ``name``, or None."""
+    for e in row.get("effects") or ():
+        if isinstance(e, dict) and e.get("name") == name:
+            iv = (e.get("intervals") or {}).get(parameter)
+            if iv is not None and len(iv) == 2 and None not in iv:
+                return float(iv[0]), float(iv[1])
+    return None
+
+
+def side(name: str, magnitude: float, threshold) -> str:
+    """``beyond`` when ``magnitude`` of effect ``name`` lies past the detectability
+    ``threshold`` (above it for effects that grow with their value, below it for clutch
+    capacity and transducer cut-off), ``below`` when not, ``unknown`` without a threshold."""
+    if threshold is None or not math.isfinite(float(threshold)):
+        return "unknown"
+    past = magnitude > float(threshold) if EFFECTS[name].grows else magnitude < float(threshold)
+    return "beyond" if past else "below"
+
+
+def _share(k: int, n: int) -> dict:
+    return {"count": int(k), "of": int(n), "share": (k / n) if n else None}
+
+
+def _spread(values) -> dict:
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if not v:
+        return {"median": None, "min": None, "max": None, "of": 0}
+    return {"median": statistics.median(v), "min": min(v), "max": max(v), "of": len(v)}
+
+
+def effect_case(row) -> dict:
+    """Per single-effect row: true name and magnitude, threshold, side, top-1, inside the interval."""
+    (name, params), = true_effects(row).items()
+    mag_par = EFFECTS[name].magnitude
+    m = float(params[mag_par])
+    thr = (row.get("detectability") or {}).get(name)
+    iv = interval(row, name, mag_par)
+    return {"name": name, "magnitude": m, "threshold": thr, "side": side(name, m, thr),
+            "top1": top_model(row) == name, "named": name in named(row),
+            "inside": iv is not None and iv[0] <= m <= iv[1]}
+
+
+def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
+    """The benchmark's figures from its JSON lines (see the module doc):
+
+    * effect cases beyond the tool's own detectability estimate: top-1 correct rate (the
+      highest-posterior model is the true effect) and the share with the true magnitude
+      inside the reported 90 % interval; below it: the detection rate (the true effect
+      named); cases without an estimate are counted apart;
+    * controls and out-of-library cases: the share where a named model has posterior >=
+      ``p`` (false claims), and the share where any effect is adopted;
+    * reduced chi^2 on controls (held out and training: median and range);
+    * two-effect cases: the share with both effects named (adopted, or the top model is
+      their pair), and with at least one;
+    * counts of every kind and of failed cases.
+    """
+    good, failed = latest(rows)
+    by = {k: [r for r in good if r.get("kind") == k] for k in KINDS}
+    cases = [effect_case(r) for r in by["effect"]]
+    beyond = [c for c in cases if c["side"] == "beyond"]
+    below = [c for c in cases if c["side"] == "below"]
+    unknown = [c for c in cases if c["side"] == "unknown"]
+    out = {"counts": {k: len(v) for k, v in by.items()}, "failed": failed, "rows": len(good)}
+    out["effect_beyond"] = {"top1_correct": _share(sum(c["top1"] for c in beyond), len(beyond)),
+                            "named_correct": _share(sum(c["named"] for c in beyond), len(beyond)),
+                            "magnitude_in_90_interval": _share(sum(c["inside"] for c in beyond), len(beyond))}
+    out["effect_below"] = {"detected": _share(sum(c["named"] for c in below), len(below))}
+    out["effect_no_estimate"] = {"top1_correct": _share(sum(c["top1"] for c in unknown), len(unknown)),
+                                 "named_correct": _share(sum(c["named"] for c in unknown), len(unknown))}
+    for kind in ("control", "out_of_library"):
+        rs = by[kind]
+        cl = [claimed(r, p) for r in rs]
+        out[kind] = {"claimed_p90": _share(sum(bool(c) for c in cl if c is not None), sum(c is not None for c in cl)),
+                     "named_any": _share(sum(bool(named(r)) for r in rs), len(rs))}
+    like = [r.get("likelihood") or {} for r in by["control"]]
+    out["control"]["reduced_chi2_held_out"] = _spread(x.get("reduced_chi2_held_out") for x in like)
+    out["control"]["reduced_chi2_train"] = _spread(x.get("reduced_chi2_train") for x in like)
+    both = one = 0
+    for r in by["pair"]:
+        truth = set(true_effects(r))
+        got = set(named(r)) | set(top_model(r).split("+"))
+        both += truth <= set(named(r)) or set(top_model(r).split("+")) == truth
+        one += bool(truth & got)
+    out["pair"] = {"both_named": _share(both, len(by["pair"])), "one_named": _share(one, len(by["pair"]))}
+    return out
+
+
+def _fmt(fig: dict) -> str:
+    if "share" in fig:
+        s = "-" if fig["share"] is None else f"{100 * fig['share']:.0f} %"
+        return f"{fig['count']}/{fig['of']}  ({s})"
+    if fig.get("median") is None:
+        return "-"
+    return f"median {fig['median']:.3g}, range {fig['min']:.3g}-{fig['max']:.3g} (n={fig['of']})"
+
+
+def summary_table(s: dict) -> str:
+    """:func:`summary` as a text table, one figure a line."""
+    lines = [f"{'figure':58s} value", "-" * 90]
+    c = s["counts"]
+    lines.append(f"{'cases (effect / pair / control / out of library; failed)':58s} "
+                 f"{c['effect']} / {c['pair']} / {c['control']} / {c['out_of_library']}; {s['failed']}")
+    rows = [
+        ("effect beyond detectability: top-1 correct", s["effect_beyond"]["top1_correct"]),
+        ("effect beyond detectability: named correctly", s["effect_beyond"]["named_correct"]),
+        ("effect beyond detectability: magnitude in 90 % interval", s["effect_beyond"]["magnitude_in_90_interval"]),
+        ("effect below detectability: detected (named)", s["effect_below"]["detected"]),
+        ("effect without detectability estimate: top-1 correct", s["effect_no_estimate"]["top1_correct"]),
+        ("controls: a named model at posterior >= 0.9", s["control"]["claimed_p90"]),
+        ("controls: any effect adopted", s["control"]["named_any"]),
+        ("controls: reduced chi2 held out", s["control"]["reduced_chi2_held_out"]),
+        ("controls: reduced chi2 training", s["control"]["reduced_chi2_train"]),
+        ("out of library: a named model at posterior >= 0.9", s["out_of_library"]["claimed_p90"]),
+        ("out of library: any effect adopted", s["out_of_library"]["named_any"]),
+        ("two effects: both named", s["pair"]["both_named"]),
+        ("two effects: at least one named", s["pair"]["one_named"]),
+    ]
+    lines += [f"{name:58s} {_fmt(fig)}" for name, fig in rows]
+    return "\n".join(lines)
+
+
+__all__ = ["KINDS", "CLAIM_PROBABILITY", "latest", "true_effects", "named", "top_model", "claimed", "interval",
+           "side", "effect_case", "summary", "summary_table"]

@@ -1,0 +1,219 @@
+"""The discrepancy benchmark: its figures from hand-written JSON lines, its case matrix,
+its truths and its resumable output (no diagnosis is run)."""
+
+import importlib.util
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import benchmark as B
+from dampersim.discrepancy import truths
+from dampersim.discrepancy.effects import EFFECTS, NAMES, parameters_of
+from dampersim.discrepancy.synth import truth_system
+from dampersim.errors import InputError
+from dampersim.parameters import default_parameters
+
+BENCH = pathlib.Path(__file__).resolve().parents[2] / "bench" / "bench_discrepancy.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_discrepancy", BENCH)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def truth(*effects):
+    return {"effects": [{"name": n, "parameters": p} for n, p in effects]}
+
+
+ROWS = [
+    # beyond the estimate, top-1 right by posterior, magnitude inside the interval
+    {"id": "e1", "kind": "effect", "truth": truth(("pendulum_absorber", {"inertia": 0.002, "order": 2.1})),
+     "detectability": {"pendulum_absorber": 0.0008}, "posterior": {"none": 0.05, "pendulum_absorber": 0.9,
+                                                                   "turbine_drag": 0.05},
+     "effect": "pendulum_absorber",
+     "effects": [{"name": "pendulum_absorber", "parameters": {"inertia": 0.0019},
+                  "intervals": {"inertia": [0.0017, 0.0021]}}]},
+    # capacity falls as the clutch effect grows: 470 below a 540 threshold is beyond it;
+    # top-1 wrong, nothing adopted
+    {"id": "e2", "kind": "effect", "truth": truth(("clutch_slip", {"capacity": 470.0})),
+     "detectability": {"clutch_slip": 540.0}, "posterior": {"none": 0.3, "turbine_drag": 0.7},
+     "effect": None, "effects": []},
+    # below the estimate, named anyway (detected)
+    {"id": "e3", "kind": "effect", "truth": truth(("pendulum_absorber", {"inertia": 0.0005})),
+     "detectability": {"pendulum_absorber": 0.001}, "posterior": {"none": 0.2, "pendulum_absorber": 0.8},
+     "effect": "pendulum_absorber", "effects": [{"name": "pendulum_absorber", "parameters": {}, "intervals": {}}]},
+    # below the estimate (cut-off 600 Hz above a 400 Hz threshold), not named
+    {"id": "e4", "kind": "effect", "truth": truth(("transducer_bandwidth", {"cutoff": 600.0})),
+     "detectability": {"transducer_bandwidth": 400.0}, "posterior": {"none": 0.99}, "effect": None, "effects": []},
+    # no estimate (a diagnosis from before detectability): counted apart; named by `effect`
+    {"id": "e5", "kind": "effect", "truth": truth(("spring_preload", {"force": 30.0})), "effect": "spring_preload"},
+    # beyond, named, but the interval misses the true value
+    {"id": "e6", "kind": "effect", "truth": truth(("turbine_drag", {"coefficient": 6.0})),
+     "detectability": {"turbine_drag": 2.0}, "posterior": {"none": 0.0, "turbine_drag": 1.0}, "effect": "turbine_drag",
+     "effects": [{"name": "turbine_drag", "parameters": {"coefficient": 4.0}, "intervals": {"coefficient": [3.5, 4.5]}}]},
+    # controls: a clean one, a false claim, one without a posterior (old diagnosis)
+    {"id": "c1", "kind": "control", "truth": truth(), "posterior": {"none": 0.95, "turbine_drag": 0.05},
+     "effect": None, "likelihood": {"reduced_chi2_held_out": 1.1, "reduced_chi2_train": 0.9}},
+    {"id": "c2", "kind": "control", "truth": truth(), "posterior": {"none": 0.05, "turbine_drag": 0.93},
+     "effect": "turbine_drag", "likelihood": {"reduced_chi2_held_out": 3.0, "reduced_chi2_train": 1.2}},
+    {"id": "c3", "kind": "control", "truth": truth(), "effect": None, "likelihood": {"reduced_chi2_held_out": 2.0}},
+    # out of library: a pair claimed at 0.91, and a clean one
+    {"id": "o1", "kind": "out_of_library", "truth": truth(), "posterior": {"none": 0.09, "clutch_slip+turbine_drag": 0.91},
+     "effect": "clutch_slip", "effects": [{"name": "clutch_slip"}, {"name": "turbine_drag"}]},
+    {"id": "o2", "kind": "out_of_library", "truth": truth(), "posterior": {"none": 0.6, "spring_preload": 0.4}},
+    # pairs: both adopted; both as the top model (other order); one only
+    {"id": "p1", "kind": "pair", "truth": truth(("turbine_drag", {"coefficient": 3.0}), ("spring_preload", {"force": 15.0})),
+     "effects": [{"name": "spring_preload"}, {"name": "turbine_drag"}]},
+    {"id": "p2", "kind": "pair", "truth": truth(("clutch_slip", {"capacity": 540.0}), ("pendulum_absorber", {"inertia": 0.001})),
+     "posterior": {"none": 0.1, "pendulum_absorber+clutch_slip": 0.6, "clutch_slip": 0.3}, "effects": []},
+    {"id": "p3", "kind": "pair", "truth": truth(("output_backlash", {"free_play": 0.03}),
+                                                ("nested_radial_transfer", {"fraction": 0.6})),
+     "effect": "nested_radial_transfer"},
+    # a case that failed, then succeeded on --resume (the success counts), and one that only failed
+    {"id": "c4", "kind": "control", "error": "RuntimeError: boom"},
+    {"id": "c4", "kind": "control", "truth": truth(), "posterior": {"none": 1.0}, "likelihood": {"reduced_chi2_held_out": 0.5}},
+    {"id": "x1", "kind": "effect", "error": "SimulationDiverged: nan"},
+]
+
+
+def lines(rows):
+    return [json.loads(json.dumps(r)) for r in rows]  # through JSON, as read from the file
+
+
+def test_summary_figures_from_hand_written_lines():
+    s = B.summary(lines(ROWS))
+    assert s["counts"] == {"effect": 6, "pair": 3, "control": 4, "out_of_library": 2}
+    assert s["failed"] == 1 and s["rows"] == 15
+    eb = s["effect_beyond"]
+    assert (eb["top1_correct"]["count"], eb["top1_correct"]["of"]) == (2, 3)  # e1, e6 right; e2 wrong
+    assert eb["named_correct"]["count"] == 2
+    assert (eb["magnitude_in_90_interval"]["count"], eb["magnitude_in_90_interval"]["of"]) == (1, 3)  # e1 only
+    assert s["effect_below"]["detected"] == {"count": 1, "of": 2, "share": 0.5}  # e3 yes, e4 no
+    assert s["effect_no_estimate"]["named_correct"] == {"count": 1, "of": 1, "share": 1.0}
+    # false claims: c2 of the three controls with a posterior (c3 has none); any adopted: c2
+    assert s["control"]["claimed_p90"] == {"count": 1, "of": 3, "share": pytest.approx(1 / 3)}
+    assert s["control"]["named_any"]["count"] == 1 and s["control"]["named_any"]["of"] == 4
+    chi = s["control"]["reduced_chi2_held_out"]
+    assert (chi["median"], chi["min"], chi["max"], chi["of"]) == (1.55, 0.5, 3.0, 4)
+    assert s["control"]["reduced_chi2_train"]["of"] == 2
+    assert s["out_of_library"]["claimed_p90"] == {"count": 1, "of": 2, "share": 0.5}
+    assert s["pair"]["both_named"] == {"count": 2, "of": 3, "share": pytest.approx(2 / 3)}
+    assert s["pair"]["one_named"]["count"] == 3
+    table = B.summary_table(s)
+    assert "top-1 correct" in table and "2/3" in table and "median 1.55" in table
+
+
+def test_summary_of_rows_without_the_new_diagnosis_keys():
+    old = [{"id": "a", "kind": "control", "truth": truth(), "effect": None},
+           {"id": "b", "kind": "effect", "truth": truth(("turbine_drag", {"coefficient": 3.0})), "effect": "turbine_drag"}]
+    s = B.summary(old)
+    assert s["control"]["claimed_p90"]["of"] == 0 and s["control"]["claimed_p90"]["share"] is None
+    assert s["effect_no_estimate"]["top1_correct"]["count"] == 1
+    assert "-" in B.summary_table(s)
+    assert B.summary([])["counts"]["effect"] == 0
+
+
+def test_beyond_means_below_the_threshold_for_capacity_and_cutoff():
+    assert not EFFECTS["clutch_slip"].grows and not EFFECTS["transducer_bandwidth"].grows
+    assert B.side("clutch_slip", 470.0, 540.0) == "beyond" and B.side("clutch_slip", 620.0, 540.0) == "below"
+    assert B.side("transducer_bandwidth", 150.0, 300.0) == "beyond"
+    assert B.side("turbine_drag", 6.0, 3.0) == "beyond" and B.side("turbine_drag", 1.5, 3.0) == "below"
+    assert B.side("turbine_drag", 1.5, None) == "unknown"
+
+
+def test_truth_shape_ranges_lie_inside_the_library_bounds_and_draws_inside_them():
+    rng = np.random.default_rng(0)
+    for name, ranges in truths.SHAPE_RANGES.items():
+        bounds = {p["name"]: p for p in parameters_of(name)}
+        for par, (lo, hi) in ranges.items():
+            assert bounds[par]["min"] <= lo < hi <= bounds[par]["max"], (name, par)
+            assert par != EFFECTS[name].magnitude
+        for _ in range(50):
+            for par, v in truths.random_shape(name, rng).items():
+                assert ranges[par][0] <= v <= ranges[par][1]
+    assert truths.random_shape("turbine_drag", rng) == {}
+
+
+def test_magnitude_levels():
+    for name in NAMES:
+        e = EFFECTS[name]
+        mags = [truths.magnitude_at(name, lv) for lv in truths.LEVELS]
+        assert mags[1:] == list(e.magnitudes)
+        # subtle is weaker than weak in the effect's own direction
+        assert (mags[0] < mags[1]) if e.grows else (mags[0] > mags[1])
+    assert truths.magnitude_at("pendulum_absorber", "subtle") == 0.00025
+    with pytest.raises(InputError):
+        truths.magnitude_at("pendulum_absorber", "huge")
+
+
+def test_truths_build_valid_parameter_sets():
+    base = default_parameters()
+    rng = np.random.default_rng(3)
+    specs = [truths.single(n, "strong", rng) for n in NAMES] + [truths.pair(a, b, rng) for a, b in truths.PAIRS]
+    specs += [truths.out_of_library(k, rng) for k in truths.OUT_OF_LIBRARY for _ in range(3)]
+    specs += [truths.control(k, rng) for k in truths.CONTROLS for _ in range(3)]
+    for spec in specs:
+        system, applied = truth_system(base, [tuple(e) for e in spec["effects"]], 0.0, rng, spec["updates"])
+        for n, values in spec["effects"]:
+            for par, v in values.items():
+                assert getattr(getattr(system.effects, n), par) == v
+        for k, v in spec["updates"].items():
+            assert applied[k] == v
+    shaft = truths.out_of_library("rig_shaft", rng)["updates"]["rig.elements.gearbox.shaft_stiffness"]
+    assert 0.2 <= abs(shaft / 10500.0 - 1.0) <= 0.3
+    shape = truths.out_of_library("friction_shape", rng)["updates"]
+    assert shape and all(k.startswith("friction.gamma") for k in shape)
+    with pytest.raises(InputError):
+        truths.out_of_library("weather", rng)
+    with pytest.raises(InputError):
+        truths.pair("turbine_drag", "turbine_drag", rng)
+
+
+def test_the_hard_matrix(bench):
+    cases = bench.hard_cases()
+    assert cases == bench.hard_cases()  # reproducible
+    kinds = [c["kind"] for c in cases]
+    assert kinds.count("control") >= 20 and kinds.count("out_of_library") >= 10 and kinds.count("pair") >= 6
+    assert len({c["id"] for c in cases}) == len(cases)
+    eff = [c for c in cases if c["kind"] == "effect"]
+    assert {c["level"] for c in eff} == set(truths.LEVELS) and {c["group"] for c in eff} == set(NAMES)
+    assert all(c["daq"] == "random" for c in cases)
+    absorbers = [c["spec"]["effects"][0][1] for c in eff if c["group"] == "pendulum_absorber"]
+    assert len({a["order"] for a in absorbers}) == len(absorbers)  # random shapes
+    assert set(kinds[:17]) == {"effect", "pair", "control", "out_of_library"}  # interleaved: one of each group first
+    ids = bench.point_ids(6, 1)
+    assert len(ids) == 7 and ids[-1] == "ramp_1500" and not any(i.startswith("ramp") for i in ids[:-1])
+    classic = bench.classic_cases()
+    assert len(classic) == 82 and all(c["daq"] is None for c in classic)
+    assert [c["id"] for c in bench.selected(classic, ["miscalibration"])] == [f"classic/miscalibration/{i}" for i in range(5)]
+    assert {c["group"] for c in bench.selected(cases, ["out_of_library"])} == {k for k, _ in bench.HARD_OUT_OF_LIBRARY}
+
+
+def test_each_case_is_written_at_once_and_resume_skips_it(bench, tmp_path, monkeypatch, capsys):
+    ran = []
+
+    def fake_run(case, n_points, record, ramps, workers):
+        ran.append(case["id"])
+        if len(ran) == 2:
+            raise RuntimeError("diverged")
+        return {"id": case["id"], "kind": case["kind"], "truth": {"effects": []}, "verdict": "no_missing_effect"}
+
+    monkeypatch.setattr(bench, "run_case", fake_run)
+    out = tmp_path / "b.jsonl"
+    bench.main(["--only", "control", "--limit", "3", "--out", str(out)])
+    rows = bench.read_lines(out)
+    assert [r["id"] for r in rows] == ran and "error" in rows[1] and len(rows) == 3
+    with pytest.raises(SystemExit):  # an existing file is never overwritten
+        bench.main(["--only", "control", "--limit", "3", "--out", str(out)])
+    with open(out, "a") as fh:
+        fh.write('{"id": "torn')  # a run killed while writing
+    ran.clear()
+    bench.main(["--only", "control", "--limit", "2", "--out", str(out), "--resume"])
+    assert ran[0] == rows[1]["id"]  # the failed case is tried again, the finished ones are not
+    rows = bench.read_lines(out)
+    assert len(rows) == 5 and "controls" in capsys.readouterr().out
