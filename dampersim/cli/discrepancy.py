@@ -96,7 +96,7 @@ def cmd_diagnose(args) -> int:
         save_toml(sysout, args.out_params)
     if args.report:
         from dampersim.fileio import write_text_atomic
-        from dampersim.plotting.discrepancy import report_html
+        from dampersim.discrepancy.report_tables import report_html
 
         write_text_atomic(args.report, report_html(diag, camp.name))
     if args.json:

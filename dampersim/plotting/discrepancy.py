@@ -149,12 +149,39 @@ def _finite(v) -> bool:
     return v is not None and bool(np.isfinite(v))
 
 
-def report_html(diag, campaign_name: str = "") -> str:
+def sections_html(sections) -> str:
+    """Tables with a title and notes as HTML: each section {"title", "columns" ([(key,
+    title)]), "rows" (dicts of text), "highlight" (key of a row's bool, or None), "notes"
+    (paragraphs before the table), "hint" (a paragraph on reading it), "after" (paragraphs
+    after it)}, every key optional; a section without rows has no table. Everything is
+    escaped."""
+    esc = html.escape
+    parts = []
+    for sec in sections or ():
+        parts.append(f"<h2>{esc(str(sec.get('title') or ''))}</h2>")
+        parts += [f"<p>{esc(str(n))}</p>" for n in sec.get("notes") or ()]
+        columns, rows, hl = sec.get("columns") or [], sec.get("rows") or [], sec.get("highlight")
+        if rows and columns:
+            head = "".join(f"<th>{esc(str(t))}</th>" for _, t in columns)
+            body = "".join(
+                ("<tr style='font-weight:bold'>" if hl and r.get(hl) else "<tr>")
+                + "".join(f"<td>{esc(str(r.get(k, '')))}</td>" for k, _ in columns) + "</tr>" for r in rows)
+            parts.append(f"<table border='1' cellpadding='4' style='border-collapse:collapse'><thead><tr>{head}</tr>"
+                         f"</thead><tbody>{body}</tbody></table>")
+        parts += [f"<p>{esc(str(n))}</p>" for n in sec.get("after") or ()]
+        if sec.get("hint"):
+            parts.append(f"<p><small>{esc(str(sec['hint']))}</small></p>")
+    return "\n".join(parts)
+
+
+def report_html(diag, campaign_name: str = "", sections=None) -> str:
     """A self-contained HTML report (plotly.js from the CDN) of a Diagnosis (or of a
     document read by :func:`dampersim.discrepancy.report.diagnosis_from_document`).
 
     It states the verdict and its message, the gaps, the candidates left unranked because
-    their model runs failed, and the campaign's problems. A campaign that could not be
+    their model runs failed, and the campaign's problems, then the tables of ``sections``
+    (see :func:`sections_html`; the model comparison of
+    :func:`dampersim.discrepancy.report_tables.report_html`). A campaign that could not be
     diagnosed (verdict ``insufficient_data``: no test points, no numbers) gives the verdict
     and what the campaign lacks, without figures; the gap and ranking figures need the
     gaps, the per-point figures the per-point data."""
@@ -187,6 +214,8 @@ def report_html(diag, campaign_name: str = "") -> str:
         parts.append("<h2>Campaign problems</h2><ul>" + "".join(
             f"<li>{esc(str(q.get('file')))} [{esc(str(q.get('field')))}]: {esc(str(q.get('message')))}</li>"
             for q in diag.problems) + "</ul>")
+    if sections:
+        parts.append(sections_html(sections))
     figs = [gap_figure(diag), ranking_figure(diag)] if gaps else []
     if points and all(s in residuals for s in STAGES):
         worst = max(points, key=lambda p: float(np.sum(np.square(residuals["calibrated"][p["id"]]))))
@@ -199,4 +228,4 @@ def report_html(diag, campaign_name: str = "") -> str:
 
 
 __all__ = ["gap_figure", "residual_map_figure", "order_residual_figure", "ranking_figure", "overlay_figure",
-           "residual_profile_figure", "held_out_overlay_figure", "report_html"]
+           "residual_profile_figure", "held_out_overlay_figure", "sections_html", "report_html"]
