@@ -1,9 +1,11 @@
 """Discrepancy: run the discrepancy workflow of :mod:`dampersim.discrepancy` on a measured
 campaign (a bundled example, an uploaded zip or an imported rig recording) and show what
 the model misses: the verdict and the named effect, the ranking of candidate effects, the
-held-out gap at each stage against the noise floor, where the error lies and the order
-amplitudes of the held-out points. Layout and callbacks only; data and figures come from
-:mod:`dampersim.views`.
+posterior over the models with the fitted effects' 90 % intervals, what the campaign can
+detect and the test points to measure next, the held-out gap at each stage against the
+noise floor, where the error lies and the order amplitudes of the held-out points. Layout
+and callbacks only; data and figures come from :mod:`dampersim.views`, the model
+comparison's tables from :mod:`dampersim.discrepancy.report_tables`.
 
 A rig recording (MDF4, TDMS, MAT, CSV) uploaded in "Import a rig recording" is previewed
 (channel mapping, proposed cuts in an editable table) and, on "Create campaign", imported
@@ -51,7 +53,7 @@ from dampersim.views.discrepancy import (
 from dampersim.views.notices import notice
 from dampersim.views.rigdata import IMPORT_COMMAND, KINDS, MAX_RECORDING_BYTES, RECORDING_ACCEPTED, confirm_import, stage_recording
 from dampersim.views.sweeps import SweepRegistry
-from pages import _frame as F, _jobs as J, _uploads as U, _widgets as W
+from pages import _diagnosis_tables as T, _frame as F, _jobs as J, _uploads as U, _widgets as W
 from pages._background import job_error_text
 from pages._diagnosis_view import render
 
@@ -162,6 +164,7 @@ def layout(**query):
             W.card("Held-out gap at each stage", W.graph("discrepancy-gap", 360, "No diagnosis shown yet")),
             W.card("Candidate effects: held-out gap", W.graph("discrepancy-ranking-fig", 360, "No diagnosis shown yet")),
             W.card("Ranking of the candidate effects", html.Div(id="discrepancy-ranking"), wide=True),
+            *T.cards(),
             W.card("Where the model disagrees (diamonds: held-out points)",
                    W.graph("discrepancy-map", 380, "No diagnosis shown yet"), wide=True),
             W.card(None, W.graph("discrepancy-profile", 360, "No diagnosis shown yet"), wide=True),
@@ -527,11 +530,18 @@ SHOW_OUTPUTS = [
     Output("discrepancy-profile", "figure"),
     Output("discrepancy-overlays", "figure"),
     Output("discrepancy-json", "children"),
+    *T.OUTPUTS,
 ]
 
 
+def render_all(view):
+    """Everything :func:`show` writes: the verdict, ranking and figures of
+    :func:`pages._diagnosis_view.render`, then the model comparison's tables."""
+    return (*render(view), *T.render_tables(view["diagnosis"]))
+
+
 def show(data):
-    return J.show_view(data, render, len(SHOW_OUTPUTS), "results")
+    return J.show_view(data, render_all, len(SHOW_OUTPUTS), "results")
 
 
 callbacks = J.register_background(PAGE, control_inputs=CONTROL_INPUTS, request=request, job=job, show=show,

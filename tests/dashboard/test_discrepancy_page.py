@@ -238,7 +238,8 @@ def test_other_options_do_not_reuse_the_cached_diagnosis(tiny, monkeypatch):
 
 def test_show_renders_every_result(tiny):
     shown = D.show({**tiny["done"], "nonce": "n"})
-    cards, verdict, ranking, gap, rank_fig, res_map, profile, overlays, doc_text, status, notices = shown
+    cards, verdict, ranking, gap, rank_fig, res_map, profile, overlays, doc_text, *tables, status, notices = shown
+    assert len(tables) == 4  # the model comparison: see test_discrepancy_tables.py
     doc = json.loads(doc_text)
     assert doc["verdict"] in ("missing_effect", "no_missing_effect", "unexplained")
     assert doc["verdict"].replace("_", " ") in as_json(cards) and "Done in" in as_json(status) and notices == []
