@@ -45,11 +45,24 @@ def true_effects(row) -> dict:
 
 
 def named(row) -> list:
-    """Names of the effects the diagnosis adopted: its ``effects`` list, else ``effect``."""
+    """Names of the effects the diagnosis adopted (verdict ``missing_effect``): its
+    ``effects`` list, else ``effect``. The ``effects`` list describes the most probable
+    model whatever the verdict, so it alone does not count as naming."""
+    if row.get("verdict") != "missing_effect":
+        return []
     effs = row.get("effects")
     if isinstance(effs, list) and effs:
         return [e.get("name") for e in effs if isinstance(e, dict) and e.get("name")]
     return [row["effect"]] if row.get("effect") else []
+
+
+def probability(row, name: str):
+    """Posterior probability that effect ``name`` is present (the sum over the models that
+    contain it); None without a posterior."""
+    post = row.get("posterior")
+    if not post:
+        return None
+    return sum(float(v) for k, v in post.items() if v is not None and name in k.split("+"))
 
 
 def top_model(row) -> str:
@@ -101,15 +114,20 @@ def _spread(values) -> dict:
     return {"median": statistics.median(v), "min": min(v), "max": max(v), "of": len(v)}
 
 
-def effect_case(row) -> dict:
-    """Per single-effect row: true name and magnitude, threshold, side, top-1, inside the interval."""
+def effect_case(row, p: float = CLAIM_PROBABILITY) -> dict:
+    """Per single-effect row: true name and magnitude, threshold, side, top-1, adopted,
+    detected (present with posterior >= ``p``, or adopted without a posterior), inside
+    the interval."""
     (name, params), = true_effects(row).items()
     mag_par = EFFECTS[name].magnitude
     m = float(params[mag_par])
     thr = (row.get("detectability") or {}).get(name)
     iv = interval(row, name, mag_par)
+    prob = probability(row, name)
+    adopted = name in named(row)
     return {"name": name, "magnitude": m, "threshold": thr, "side": side(name, m, thr),
-            "top1": top_model(row) == name, "named": name in named(row),
+            "top1": top_model(row) == name, "named": adopted,
+            "detected": adopted if prob is None else prob >= p,
             "inside": iv is not None and iv[0] <= m <= iv[1]}
 
 
@@ -117,9 +135,11 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
     """The benchmark's figures from its JSON lines (see the module doc):
 
     * effect cases beyond the tool's own detectability estimate: top-1 correct rate (the
-      highest-posterior model is the true effect) and the share with the true magnitude
-      inside the reported 90 % interval; below it: the detection rate (the true effect
-      named); cases without an estimate are counted apart;
+      highest-posterior model is the true effect), the share adopted (verdict
+      ``missing_effect`` naming it) and the share with the true magnitude inside the
+      reported 90 % interval; below it: the detection rate (the true effect present with
+      posterior >= ``p``; adopted, for rows without a posterior) and the share adopted;
+      cases without an estimate are counted apart;
     * controls and out-of-library cases: the share where a named model has posterior >=
       ``p`` (false claims), and the share where any effect is adopted;
     * reduced chi^2 on controls (held out and training: median and range);
@@ -129,7 +149,7 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
     """
     good, failed = latest(rows)
     by = {k: [r for r in good if r.get("kind") == k] for k in KINDS}
-    cases = [effect_case(r) for r in by["effect"]]
+    cases = [effect_case(r, p) for r in by["effect"]]
     beyond = [c for c in cases if c["side"] == "beyond"]
     below = [c for c in cases if c["side"] == "below"]
     unknown = [c for c in cases if c["side"] == "unknown"]
@@ -137,7 +157,8 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
     out["effect_beyond"] = {"top1_correct": _share(sum(c["top1"] for c in beyond), len(beyond)),
                             "named_correct": _share(sum(c["named"] for c in beyond), len(beyond)),
                             "magnitude_in_90_interval": _share(sum(c["inside"] for c in beyond), len(beyond))}
-    out["effect_below"] = {"detected": _share(sum(c["named"] for c in below), len(below))}
+    out["effect_below"] = {"detected": _share(sum(c["detected"] for c in below), len(below)),
+                           "named_correct": _share(sum(c["named"] for c in below), len(below))}
     out["effect_no_estimate"] = {"top1_correct": _share(sum(c["top1"] for c in unknown), len(unknown)),
                                  "named_correct": _share(sum(c["named"] for c in unknown), len(unknown))}
     for kind in ("control", "out_of_library"):
@@ -175,22 +196,23 @@ def summary_table(s: dict) -> str:
                  f"{c['effect']} / {c['pair']} / {c['control']} / {c['out_of_library']}; {s['failed']}")
     rows = [
         ("effect beyond detectability: top-1 correct", s["effect_beyond"]["top1_correct"]),
-        ("effect beyond detectability: named correctly", s["effect_beyond"]["named_correct"]),
+        ("effect beyond detectability: adopted (missing_effect)", s["effect_beyond"]["named_correct"]),
         ("effect beyond detectability: magnitude in 90 % interval", s["effect_beyond"]["magnitude_in_90_interval"]),
-        ("effect below detectability: detected (named)", s["effect_below"]["detected"]),
+        ("effect below detectability: detected (posterior >= 0.9)", s["effect_below"]["detected"]),
+        ("effect below detectability: adopted (missing_effect)", s["effect_below"]["named_correct"]),
         ("effect without detectability estimate: top-1 correct", s["effect_no_estimate"]["top1_correct"]),
         ("controls: a named model at posterior >= 0.9", s["control"]["claimed_p90"]),
-        ("controls: any effect adopted", s["control"]["named_any"]),
+        ("controls: an effect adopted (missing_effect)", s["control"]["named_any"]),
         ("controls: reduced chi2 held out", s["control"]["reduced_chi2_held_out"]),
         ("controls: reduced chi2 training", s["control"]["reduced_chi2_train"]),
         ("out of library: a named model at posterior >= 0.9", s["out_of_library"]["claimed_p90"]),
-        ("out of library: any effect adopted", s["out_of_library"]["named_any"]),
-        ("two effects: both named", s["pair"]["both_named"]),
+        ("out of library: an effect adopted (missing_effect)", s["out_of_library"]["named_any"]),
+        ("two effects: both named (adopted or the top model)", s["pair"]["both_named"]),
         ("two effects: at least one named", s["pair"]["one_named"]),
     ]
     lines += [f"{name:58s} {_fmt(fig)}" for name, fig in rows]
     return "\n".join(lines)
 
 
-__all__ = ["KINDS", "CLAIM_PROBABILITY", "latest", "true_effects", "named", "top_model", "claimed", "interval",
+__all__ = ["KINDS", "CLAIM_PROBABILITY", "latest", "true_effects", "named", "probability", "top_model", "claimed", "interval",
            "side", "effect_case", "summary", "summary_table"]

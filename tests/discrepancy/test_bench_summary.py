@@ -35,45 +35,57 @@ ROWS = [
     {"id": "e1", "kind": "effect", "truth": truth(("pendulum_absorber", {"inertia": 0.002, "order": 2.1})),
      "detectability": {"pendulum_absorber": 0.0008}, "posterior": {"none": 0.05, "pendulum_absorber": 0.9,
                                                                    "turbine_drag": 0.05},
-     "effect": "pendulum_absorber",
+     "verdict": "missing_effect", "effect": "pendulum_absorber",
      "effects": [{"name": "pendulum_absorber", "parameters": {"inertia": 0.0019},
                   "intervals": {"inertia": [0.0017, 0.0021]}}]},
     # capacity falls as the clutch effect grows: 470 below a 540 threshold is beyond it;
     # top-1 wrong, nothing adopted
     {"id": "e2", "kind": "effect", "truth": truth(("clutch_slip", {"capacity": 470.0})),
      "detectability": {"clutch_slip": 540.0}, "posterior": {"none": 0.3, "turbine_drag": 0.7},
-     "effect": None, "effects": []},
-    # below the estimate, named anyway (detected)
+     "verdict": "unexplained", "effect": None, "effects": []},
+    # below the estimate, detected anyway (present at 0.7 + 0.22 = 0.92 over two models) and adopted
     {"id": "e3", "kind": "effect", "truth": truth(("pendulum_absorber", {"inertia": 0.0005})),
-     "detectability": {"pendulum_absorber": 0.001}, "posterior": {"none": 0.2, "pendulum_absorber": 0.8},
-     "effect": "pendulum_absorber", "effects": [{"name": "pendulum_absorber", "parameters": {}, "intervals": {}}]},
+     "detectability": {"pendulum_absorber": 0.001},
+     "posterior": {"none": 0.08, "pendulum_absorber": 0.7, "pendulum_absorber+turbine_drag": 0.22},
+     "verdict": "missing_effect", "effect": "pendulum_absorber",
+     "effects": [{"name": "pendulum_absorber", "parameters": {}, "intervals": {}}]},
     # below the estimate (cut-off 600 Hz above a 400 Hz threshold), not named
     {"id": "e4", "kind": "effect", "truth": truth(("transducer_bandwidth", {"cutoff": 600.0})),
-     "detectability": {"transducer_bandwidth": 400.0}, "posterior": {"none": 0.99}, "effect": None, "effects": []},
+     "detectability": {"transducer_bandwidth": 400.0}, "posterior": {"none": 0.99}, "verdict": "no_missing_effect",
+     "effect": None, "effects": []},
     # no estimate (a diagnosis from before detectability): counted apart; named by `effect`
-    {"id": "e5", "kind": "effect", "truth": truth(("spring_preload", {"force": 30.0})), "effect": "spring_preload"},
+    {"id": "e5", "kind": "effect", "truth": truth(("spring_preload", {"force": 30.0})), "verdict": "missing_effect",
+     "effect": "spring_preload"},
     # beyond, named, but the interval misses the true value
     {"id": "e6", "kind": "effect", "truth": truth(("turbine_drag", {"coefficient": 6.0})),
-     "detectability": {"turbine_drag": 2.0}, "posterior": {"none": 0.0, "turbine_drag": 1.0}, "effect": "turbine_drag",
+     "detectability": {"turbine_drag": 2.0}, "posterior": {"none": 0.0, "turbine_drag": 1.0}, "verdict": "missing_effect",
+     "effect": "turbine_drag",
      "effects": [{"name": "turbine_drag", "parameters": {"coefficient": 4.0}, "intervals": {"coefficient": [3.5, 4.5]}}]},
+    # beyond, the most probable model is right and its interval holds the truth, but the
+    # verdict is unexplained: top-1, not adopted (``effects`` describes the top model anyway)
+    {"id": "e7", "kind": "effect", "truth": truth(("pendulum_absorber", {"inertia": 0.002})),
+     "detectability": {"pendulum_absorber": 0.0008}, "posterior": {"none": 0.0, "pendulum_absorber": 0.9996},
+     "verdict": "unexplained", "effect": None,
+     "effects": [{"name": "pendulum_absorber", "parameters": {}, "intervals": {"inertia": [0.0015, 0.0021]}}]},
     # controls: a clean one, a false claim, one without a posterior (old diagnosis)
     {"id": "c1", "kind": "control", "truth": truth(), "posterior": {"none": 0.95, "turbine_drag": 0.05},
      "effect": None, "likelihood": {"reduced_chi2_held_out": 1.1, "reduced_chi2_train": 0.9}},
     {"id": "c2", "kind": "control", "truth": truth(), "posterior": {"none": 0.05, "turbine_drag": 0.93},
-     "effect": "turbine_drag", "likelihood": {"reduced_chi2_held_out": 3.0, "reduced_chi2_train": 1.2}},
+     "verdict": "missing_effect", "effect": "turbine_drag", "likelihood": {"reduced_chi2_held_out": 3.0, "reduced_chi2_train": 1.2}},
     {"id": "c3", "kind": "control", "truth": truth(), "effect": None, "likelihood": {"reduced_chi2_held_out": 2.0}},
     # out of library: a pair claimed at 0.91, and a clean one
     {"id": "o1", "kind": "out_of_library", "truth": truth(), "posterior": {"none": 0.09, "clutch_slip+turbine_drag": 0.91},
-     "effect": "clutch_slip", "effects": [{"name": "clutch_slip"}, {"name": "turbine_drag"}]},
+     "verdict": "missing_effect", "effect": "clutch_slip", "effects": [{"name": "clutch_slip"}, {"name": "turbine_drag"}]},
     {"id": "o2", "kind": "out_of_library", "truth": truth(), "posterior": {"none": 0.6, "spring_preload": 0.4}},
     # pairs: both adopted; both as the top model (other order); one only
     {"id": "p1", "kind": "pair", "truth": truth(("turbine_drag", {"coefficient": 3.0}), ("spring_preload", {"force": 15.0})),
-     "effects": [{"name": "spring_preload"}, {"name": "turbine_drag"}]},
+     "verdict": "missing_effect", "effects": [{"name": "spring_preload"}, {"name": "turbine_drag"}]},
     {"id": "p2", "kind": "pair", "truth": truth(("clutch_slip", {"capacity": 540.0}), ("pendulum_absorber", {"inertia": 0.001})),
-     "posterior": {"none": 0.1, "pendulum_absorber+clutch_slip": 0.6, "clutch_slip": 0.3}, "effects": []},
+     "posterior": {"none": 0.1, "pendulum_absorber+clutch_slip": 0.6, "clutch_slip": 0.3}, "verdict": "unexplained",
+     "effects": []},
     {"id": "p3", "kind": "pair", "truth": truth(("output_backlash", {"free_play": 0.03}),
                                                 ("nested_radial_transfer", {"fraction": 0.6})),
-     "effect": "nested_radial_transfer"},
+     "verdict": "missing_effect", "effect": "nested_radial_transfer"},
     # a case that failed, then succeeded on --resume (the success counts), and one that only failed
     {"id": "c4", "kind": "control", "error": "RuntimeError: boom"},
     {"id": "c4", "kind": "control", "truth": truth(), "posterior": {"none": 1.0}, "likelihood": {"reduced_chi2_held_out": 0.5}},
@@ -87,13 +99,15 @@ def lines(rows):
 
 def test_summary_figures_from_hand_written_lines():
     s = B.summary(lines(ROWS))
-    assert s["counts"] == {"effect": 6, "pair": 3, "control": 4, "out_of_library": 2}
-    assert s["failed"] == 1 and s["rows"] == 15
+    assert s["counts"] == {"effect": 7, "pair": 3, "control": 4, "out_of_library": 2}
+    assert s["failed"] == 1 and s["rows"] == 16
     eb = s["effect_beyond"]
-    assert (eb["top1_correct"]["count"], eb["top1_correct"]["of"]) == (2, 3)  # e1, e6 right; e2 wrong
-    assert eb["named_correct"]["count"] == 2
-    assert (eb["magnitude_in_90_interval"]["count"], eb["magnitude_in_90_interval"]["of"]) == (1, 3)  # e1 only
+    assert (eb["top1_correct"]["count"], eb["top1_correct"]["of"]) == (3, 4)  # e1, e6, e7 right; e2 wrong
+    assert eb["named_correct"]["count"] == 2  # e1, e6 (e7 is unexplained)
+    assert (eb["magnitude_in_90_interval"]["count"], eb["magnitude_in_90_interval"]["of"]) == (2, 4)  # e1, e7
     assert s["effect_below"]["detected"] == {"count": 1, "of": 2, "share": 0.5}  # e3 yes, e4 no
+    assert s["effect_below"]["named_correct"]["count"] == 1
+    assert B.probability(ROWS[2], "pendulum_absorber") == pytest.approx(0.92)
     assert s["effect_no_estimate"]["named_correct"] == {"count": 1, "of": 1, "share": 1.0}
     # false claims: c2 of the three controls with a posterior (c3 has none); any adopted: c2
     assert s["control"]["claimed_p90"] == {"count": 1, "of": 3, "share": pytest.approx(1 / 3)}
@@ -105,12 +119,13 @@ def test_summary_figures_from_hand_written_lines():
     assert s["pair"]["both_named"] == {"count": 2, "of": 3, "share": pytest.approx(2 / 3)}
     assert s["pair"]["one_named"]["count"] == 3
     table = B.summary_table(s)
-    assert "top-1 correct" in table and "2/3" in table and "median 1.55" in table
+    assert "top-1 correct" in table and "3/4" in table and "median 1.55" in table
 
 
 def test_summary_of_rows_without_the_new_diagnosis_keys():
-    old = [{"id": "a", "kind": "control", "truth": truth(), "effect": None},
-           {"id": "b", "kind": "effect", "truth": truth(("turbine_drag", {"coefficient": 3.0})), "effect": "turbine_drag"}]
+    old = [{"id": "a", "kind": "control", "truth": truth(), "verdict": "no_missing_effect", "effect": None},
+           {"id": "b", "kind": "effect", "truth": truth(("turbine_drag", {"coefficient": 3.0})),
+            "verdict": "missing_effect", "effect": "turbine_drag"}]
     s = B.summary(old)
     assert s["control"]["claimed_p90"]["of"] == 0 and s["control"]["claimed_p90"]["share"] is None
     assert s["effect_no_estimate"]["top1_correct"]["count"] == 1
