@@ -273,8 +273,18 @@ DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
 DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
 DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)
 DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
-DIAGNOSIS_FIT_RUNS = 5 + 8 + 3  # magnitude grid + bounded refinement + verification runs
+DIAGNOSIS_FIT_RUNS = 5 + 8 + 3 + 1  # magnitude grid + bounded refinement + verification + derivative runs
 DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
+DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
+DIAGNOSIS_PAIR_RUNS = 5 + 8 + 1 + 1  # a pair's second magnitude: grid + refinement + verification + derivative
+DIAGNOSIS_DETECT_RUNS = 3  # magnitudes per candidate for its detectability (weak, typical, strong)
+DIAGNOSIS_DESIGN_RUNS = 5 * 3 * 5  # next-test design: candidate points x models (design.DESIGN_*)
+DIAGNOSIS_DESIGN_S = 0.6 + 1.0  # simulated length of one design run [s] (start-up + design.DESIGN_RECORD)
+#: replays of each ramp: as given, calibrated, its coarse check, six calibration sensitivities, each
+#: fitted model (shortlist and a pair) with its magnitude sensitivities (two for the pair), the
+#: sizing search of the most probable effect (10 + 2 for its curvature) and that model afterwards
+DIAGNOSIS_RAMP_SIZING = 10 + 2
+DIAGNOSIS_RAMP_RUNS = 3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1 + DIAGNOSIS_RAMP_SIZING + 1
 
 
 def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
@@ -282,7 +292,9 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     (every third held out) and ``n_candidates`` effects: compare (twice: the model and its
     coarse discretisation), coarse scan and Gauss-Newton on the training points, the
     held-out check, a screen per candidate from two starts, the shortlist's fits from
-    both starts with their held-out checks, and three runs per ramp."""
+    both starts (with their shape parameters) and their held-out checks, a pair of
+    effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
+    next-test design's runs have their own length (:func:`diagnosis_cost`)."""
     n = max(0, int(n_points))
     held = n // 3 + (1 if n % 3 >= 2 else 0)
     train = n - held
@@ -292,27 +304,32 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += held
     runs += DIAGNOSIS_STARTS * int(n_candidates) * train
     shortlist = min(DIAGNOSIS_SHORTLIST, max(1, int(n_candidates)))
-    runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + held)
-    runs += 3 * max(0, int(n_ramps))
+    runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + DIAGNOSIS_SHAPE_RUNS * train + held)
+    runs += DIAGNOSIS_PAIR_RUNS * train + held
+    runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
+    runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing
     return int(runs)
 
 
 def diagnosis_cost(system, n_points: int, duration: float, n_candidates: int, n_ramps: int = 0,
                    ramp_duration: float = 0.0, workers: int = 2) -> Cost:
     """A diagnosis (:mod:`dampersim.discrepancy`): :func:`diagnosis_runs` runs of
-    ``duration`` [s] (the longest torsional record) plus three runs per ramp of
+    ``duration`` [s] (the longest torsional record), the next-test design's
+    DIAGNOSIS_DESIGN_RUNS runs of DIAGNOSIS_DESIGN_S, plus DIAGNOSIS_RAMP_RUNS runs per ramp of
     ``ramp_duration`` [s]; bytes of ``workers`` runs in flight (the diagnosis runner's
     default is two processes)."""
-    runs = diagnosis_runs(n_points, n_candidates, 0)
+    runs = diagnosis_runs(n_points, n_candidates, 0) + (max(0, int(n_points)) if n_ramps else 0)
     one = point_cost(system, duration, record_segments=False)
-    work = runs * one.work
-    peak = one.bytes
+    design = point_cost(system, DIAGNOSIS_DESIGN_S, record_segments=False)
+    work = runs * one.work + DIAGNOSIS_DESIGN_RUNS * design.work
+    runs += DIAGNOSIS_DESIGN_RUNS
+    peak = max(one.bytes, design.bytes)
     if n_ramps and ramp_duration > 0:
         ramp = point_cost(system, ramp_duration, record_segments=False)
-        work += 3 * int(n_ramps) * ramp.work
+        work += DIAGNOSIS_RAMP_RUNS * int(n_ramps) * ramp.work
         peak = max(peak, ramp.bytes)
     return Cost(float(work), float(max(1, int(workers)) * peak),
-                f"a diagnosis of {int(n_points)} test points ({runs + 3 * max(0, int(n_ramps))} model runs)")
+                f"a diagnosis of {int(n_points)} test points ({runs + DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps))} model runs)")
 
 
 def _cores() -> int:

@@ -47,7 +47,25 @@ def verdict_block(doc: dict):
 
 def ranking_table(doc: dict):
     rows = []
-    for r in ranking_rows(doc):
+    ranked = ranking_rows(doc)
+    if any(r["posterior"] is not None for r in ranked):  # a diagnosis with the likelihood
+        for r in ranked:
+            rows.append({
+                "rank": str(r["rank"]), "effect": r["effect"], "parameters": r["parameters"],
+                "posterior": W.fmt(r["posterior"], 3), "evidence": W.fmt(r["log_evidence"], 4),
+                "gap": _nm(r["gap_held_out_nm"]), "chi2": W.fmt(r["reduced_chi2_held_out"], 3),
+                "start": r["start"] or "—", "named": r["named"],
+            })
+        cols = [("rank", "#"), ("effect", "Effect"), ("parameters", "Fitted parameters"), ("posterior", "Posterior"),
+                ("evidence", "Log evidence"), ("gap", "Held-out gap"), ("chi2", "Held-out reduced χ²"),
+                ("start", "Fitted from")]
+        note = html.P("Ranked by posterior probability: the Laplace evidence of each model fitted on the training points "
+                      "(calibration, channel gain and delay, the effect's magnitude and shape) times its prior. "
+                      "Candidates without a held-out figure were screened (linearised) but not fitted. Each candidate "
+                      "is fitted from the calibrated or the estimated parameters, whichever fits better: from the "
+                      "estimated ones when the calibration had imitated the effect.", className="hint")
+        return [W.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
+    for r in ranked:  # a document from before the likelihood
         rows.append({
             "rank": str(r["rank"]), "effect": r["effect"], "parameters": r["parameters"],
             "gap": _nm(r["gap_held_out_nm"]),
@@ -59,11 +77,8 @@ def ranking_table(doc: dict):
     cols = [("rank", "#"), ("effect", "Effect"), ("parameters", "Fitted parameters"), ("gap", "Held-out gap"),
             ("improvement", "Improvement on held-out points"), ("penalty", "Complexity penalty"), ("score", "Score"),
             ("train", "Training fit"), ("screen", "Screen fit"), ("start", "Fitted from")]
-    note = html.P("Ranked by score = held-out gap plus a complexity penalty per fitted parameter. Improvement is relative "
-                  "to the calibrated model without any effect; screened-out candidates were not fitted (their screen fit "
-                  "is the training residual of a linearised signature fit). Each candidate is fitted from the calibrated "
-                  "or the estimated parameters, whichever its screen fits better: from the estimated ones when the "
-                  "calibration had imitated the effect.", className="hint")
+    note = html.P("Ranked by score = held-out gap plus a complexity penalty per fitted parameter (a diagnosis made "
+                  "before the likelihood).", className="hint")
     return [W.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
 
 

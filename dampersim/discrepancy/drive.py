@@ -94,14 +94,16 @@ def simulate_point(system, point) -> dict:
     """Simulate one measured point with ``system``.
 
     torsional: {"orders": output order amplitudes [N m] over the record's revolutions, read
-    on the record's measured angle like the measured output (:func:`tracking.driven_orders`)};
+    on the record's measured angle like the measured output, "coefficients": the same as
+    complex coefficients (:func:`tracking.driven_coefficients`)};
     ramp: {"torque", "windup"} on the record's time base (windup [rad]).
     """
 
     if point.kind == "torsional":
         ex = MeasuredTorque(point.speed, point.time, point.input_torque)
         res = simulate(system, ex, record_segments=False)
-        return {"orders": tracking.driven_orders(point, res, ex.steady_start, ORDERS)}
+        c = tracking.driven_coefficients(point, res, ex.steady_start, ORDERS)
+        return {"orders": np.abs(c), "coefficients": c}
     ex = RecordedRamp(point.speed, point.time, point.input_torque)
     res = simulate(system, ex, record_segments=False)
     wind = np.interp(point.time, res.t, res.windup_total)
@@ -116,7 +118,7 @@ def run_task(args) -> dict:
         out = simulate_point(system, point)
     except Exception as exc:  # noqa: BLE001 - a failed point is reported, not fatal
         return {"error": f"{type(exc).__name__}: {exc}"}
-    bad = [k for k, v in out.items() if not np.all(np.isfinite(np.asarray(v, dtype=float)))]
+    bad = [k for k, v in out.items() if not np.all(np.isfinite(np.asarray(v)))]
     if bad:
         return {"error": f"non-finite {', '.join(bad)}: the run diverged"}
     return out
@@ -145,12 +147,14 @@ class Runner:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
 
-    def map(self, tasks) -> list:
+    def map(self, tasks, fn=None) -> list:
+        """``fn`` (default :func:`run_task`, a module-level function) of every task."""
+        fn = fn or run_task
         tasks = list(tasks)
         self.count += len(tasks)
         if self._pool is None:
-            return [run_task(t) for t in tasks]
-        return list(self._pool.map(run_task, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
+            return [fn(t) for t in tasks]
+        return list(self._pool.map(fn, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
 
 
 def orders_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
@@ -163,6 +167,20 @@ def orders_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
     for i, r in enumerate(out):
         if "orders" in r:
             rows[i] = r["orders"]
+        elif errors is not None:
+            errors[i] = r.get("error", "no result")
+    return rows
+
+
+def coefficients_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
+    """Complex output order coefficients [N m] of ``system`` driven by each torsional point
+    (see :func:`orders_of`; a failed run gives a row of complex NaN)."""
+    sysd = diagnosis_system(system)
+    out = runner.map([(sysd, p) for p in points])
+    rows = np.full((len(out), len(ORDERS)), np.nan + 1j * np.nan)
+    for i, r in enumerate(out):
+        if "coefficients" in r:
+            rows[i] = r["coefficients"]
         elif errors is not None:
             errors[i] = r.get("error", "no result")
     return rows
@@ -181,23 +199,6 @@ def failed_text(failed: dict) -> str:
     return f"{', '.join(sorted(failed))} ({next(iter(failed.values()))})"
 
 
-def ramp_errors(runner, stages: dict, points) -> tuple:
-    """Windup error [deg] of each ramp point under each parameter set of ``stages``
-    ({stage: system}): ({stage: {point id: deg}}, {point id: {stage: windup [rad]}}, the
-    ``problems`` entries of the runs that failed)."""
-    errors, traces, problems = {}, {}, []
-    for stage, s in stages.items():
-        errors[stage] = {}
-        for p, o in zip(points, runner.map([(diagnosis_system(s), p) for p in points])):
-            if "windup" in o:
-                errors[stage][p.id] = windup_error_deg(o["windup"], p)
-                traces.setdefault(p.id, {})[stage] = o["windup"]
-            else:
-                problems.append(run_problem(p, f"the ramp's model run ({stage} parameter set) failed "
-                                            f"({o.get('error', 'no result')}); no windup error for it"))
-    return errors, traces, problems
-
-
 def windup_error_deg(sim_windup, point) -> float:
     """RMS difference [deg] of the 10 Hz low-passed simulated and measured windup."""
 
@@ -208,5 +209,5 @@ def windup_error_deg(sim_windup, point) -> float:
 
 
 __all__ = ["ORDERS", "RecordedRamp", "diagnosis_system", "measured_orders", "split_half_spread", "simulate_point",
-           "run_task", "Runner", "orders_of", "run_problem", "failed_text", "ramp_errors",
+           "run_task", "Runner", "orders_of", "coefficients_of", "run_problem", "failed_text",
            "windup_error_deg"]

@@ -66,11 +66,11 @@ def effect_parameter_text(name, values: dict) -> str:
 
 
 def ranking_rows(doc: dict) -> list:
-    """Ranking of a diagnosis document as table rows: effect, fitted parameters (with
-    units), held-out gap [N m], improvement over the calibrated model [%], complexity
-    penalty [N m] (score minus gap), score [N m], training fit and screen fit [N m], and
-    the starting point the effect was fitted from ("calibrated" or "estimated"
-    parameters; None in documents from before that choice existed).
+    """Ranking of a diagnosis document as table rows: effect (or pair "a+b"), fitted
+    parameters (with units), posterior probability, log evidence, held-out gap [N m] and
+    reduced chi^2 on the held-out points, and the starting point the effect was fitted from
+    ("calibrated" or "estimated" parameters). Documents from before the likelihood carry
+    improvement, penalty, score, training and screen fits instead (None in newer ones).
 
     A candidate left unranked because its model runs failed has ``excluded`` (the
     reason, which also stands in its ``parameters`` text: it has no gap) and
@@ -95,6 +95,9 @@ def ranking_rows(doc: dict) -> list:
             "train_fit_nm": r.get("train_fit_nm"),
             "screen_fit_nm": r.get("screen_fit_nm"),
             "start": r.get("fitted_from"),
+            "posterior": r.get("posterior"),
+            "log_evidence": r.get("log_evidence"),
+            "reduced_chi2_held_out": r.get("reduced_chi2_held_out"),
             "named": r.get("effect") == doc.get("effect"),
         })
     return rows
@@ -138,23 +141,35 @@ def verdict_summary(doc: dict) -> dict:
             "missing": missing,
         }
     floor, cal, after = doc.get("noise_floor_nm"), doc.get("gap_calibrated_nm"), doc.get("gap_after_nm")
-    ranked = [r for r in doc.get("ranking") or [] if r.get("gap_held_out_nm") is not None]
-    if verdict == "missing_effect":
-        level, headline = "success", f"Missing effect: {effect}"
-        reason = (f"With {effect} added, the held-out gap falls from {nm(cal)} (calibrated) to {nm(after)}, within "
-                  f"{dg.FLOOR_FACTOR_UNEXPLAINED:g}x the noise floor of {nm(floor)}.")
+    lk = doc.get("likelihood") or {}
+    post = doc.get("posterior") or {}
+    top = max(post, key=post.get) if post else None
+    level_chi = lk.get("noise_level")
+
+    def chi(v):
+        return "—" if v is None else f"{float(v):.3g}"
+
+    if not lk:  # a document from before the likelihood: the gap figures only
+        reason = f"Held-out gap {nm(cal)} calibrated, {nm(after)} after; noise floor {nm(floor)}."
+        level, headline = {"missing_effect": ("success", f"Missing effect: {effect}"),
+                           "no_missing_effect": ("info", "No missing effect")}.get(
+                               verdict, ("warning", "Unexplained discrepancy"))
+    elif verdict == "missing_effect":
+        level, headline = "success", f"Missing effect: {top.replace('+', ' and ') if top else effect}"
+        reason = (f"Most probable model: {top} (posterior {post.get(top, 0.0):.2f}). With it the held-out misfit falls "
+                  f"from reduced chi^2 {chi(lk.get('reduced_chi2_held_out_calibrated'))} (calibrated) to "
+                  f"{chi(lk.get('reduced_chi2_held_out'))}, within the noise level {chi(level_chi)}; the held-out gap "
+                  f"from {nm(cal)} to {nm(after)}.")
     elif verdict == "no_missing_effect":
         level, headline = "info", "No missing effect"
-        reason = (f"After calibration the held-out gap is {nm(cal)}, within {dg.FLOOR_FACTOR_NONE:g}x the noise floor of "
-                  f"{nm(floor)}: the model explains this campaign; any candidate would be fitting noise.")
+        reason = (f"The calibrated model is the most probable (posterior {post.get('none', 0.0):.2f}) and its held-out "
+                  f"misfit, reduced chi^2 {chi(lk.get('reduced_chi2_held_out_calibrated'))}, is within the noise level "
+                  f"{chi(level_chi)} (held-out gap {nm(cal)}): the model explains this campaign.")
     else:
         level, headline = "warning", "Unexplained discrepancy"
-        best = ranked[0] if ranked else None
-        reason = (f"After calibration the held-out gap is {nm(cal)}, above {dg.FLOOR_FACTOR_NONE:g}x the noise floor of "
-                  f"{nm(floor)}, but no candidate closes it: " + (
-                      f"the best, {best['effect']}, leaves {nm(best['gap_held_out_nm'])} (a named effect must cut the gap by "
-                      f"at least {100 * dg.MIN_IMPROVEMENT:.0f} % and leave it within {dg.FLOOR_FACTOR_UNEXPLAINED:g}x the floor)."
-                      if best else "no candidate could be fitted."))
+        reason = (f"The most probable model, {top} (posterior {post.get(top, 0.0):.2f}), leaves a held-out misfit of "
+                  f"reduced chi^2 {chi(lk.get('reduced_chi2_held_out'))}, above the noise level {chi(level_chi)} "
+                  f"(held-out gap {nm(cal)} calibrated): no candidate explains the data.")
     reason += excluded_text(doc)
     axes = (doc.get("locate") or {}).get("axes") or {}
     where = (doc.get("locate") or {}).get("collapses_on")

@@ -68,23 +68,30 @@ def point_orders(point, signal, orders, part: slice = slice(None)) -> np.ndarray
     return tracked(point, signal, orders, part).amplitudes
 
 
-def driven_orders(point, res, steady_start: float, orders) -> np.ndarray:
-    """Output order amplitudes [N m] of a model run ``res`` (a simulation result) driven by
-    the point's record, which the run plays from ``steady_start`` [s] on.
+def driven_coefficients(point, res, steady_start: float, orders) -> np.ndarray:
+    """Complex output order coefficients [N m] of a model run ``res`` (a simulation result)
+    driven by the point's record, which the run plays from ``steady_start`` [s] on.
 
     Read with the point's angle over the revolutions the measured output is read over, so
-    that model and measurement are compared through the same operator; without a speed
-    channel, at the nominal speed over the record's length at the end of the run."""
+    that model and measurement are compared through the same operator (amplitude and phase
+    on the same angle reference); without a speed channel, the real amplitudes at the
+    nominal speed over the record's length at the end of the run."""
     w = res.window(point.duration)
     if getattr(point, SPEED_CHANNEL, None) is None:
-        return order_amplitudes(res.output_torque[w], res.sample_rate, point.speed, orders)
+        return order_amplitudes(res.output_torque[w], res.sample_rate, point.speed, orders).astype(complex)
     t = np.asarray(res.t[w], dtype=float) - steady_start
     x = np.asarray(res.output_torque[w], dtype=float)
     ref = tracked(point, point.output_torque, orders)
     inside = (t >= point.time[0]) & (t <= point.time[-1])
     th = np.interp(t[inside], point.time, point_angle(point, orders))
     return track_orders(x[inside], t[inside], th, orders, revolutions=ref.revolutions, channel=SPEED_CHANNEL,
-                        start=ref.start).amplitudes
+                        start=ref.start).complex
 
 
-__all__ = ["SPEED_CHANNEL", "point_speed", "point_angle", "tracked", "point_orders", "driven_orders"]
+def driven_orders(point, res, steady_start: float, orders) -> np.ndarray:
+    """Output order amplitudes [N m] of a model run driven by the point's record
+    (the magnitudes of :func:`driven_coefficients`)."""
+    return np.abs(driven_coefficients(point, res, steady_start, orders))
+
+
+__all__ = ["SPEED_CHANNEL", "point_speed", "point_angle", "tracked", "point_orders", "driven_coefficients", "driven_orders"]

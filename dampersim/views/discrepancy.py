@@ -52,8 +52,9 @@ UPLOADS_SUBDIR = "uploads"
 #: dashboard (empty: the library's defaults); part of the cache key.
 DISCREPANCY_OPTIONS: dict = {}
 #: Bumped when the content of a cached diagnosis view changes shape (2: the campaign
-#: summary says what a campaign lacks, ``missing`` and ``message``).
-DISCREPANCY_FORMAT = 2
+#: summary says what a campaign lacks, ``missing`` and ``message``; 3: the likelihood, posterior,
+#: detectability and next test points).
+DISCREPANCY_FORMAT = 3
 #: Default example campaign of the page (the first bundled one if it is missing).
 DEFAULT_EXAMPLE = "hidden-effect-example"
 #: Rough cost of the diagnosis [core seconds per second of torsional record], measured

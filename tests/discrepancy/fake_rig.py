@@ -12,15 +12,17 @@ stand-in is right.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import zlib
 
 import numpy as np
 
 from dampersim.discrepancy import drive
 from dampersim.discrepancy.campaign import Campaign, MeasuredPoint
+from dampersim.discrepancy.likelihood import measured_coefficients
 from dampersim.errors import SimulationDiverged
 from dampersim.parameters import default_parameters
-from dampersim.signal import order_amplitudes
 
 RATE = 4000.0  # [Hz]: resolves order 8 at 2500 rpm (333 Hz)
 SECONDS = 0.6  # [s]: at least 0.5 s and 8 revolutions at 1000 rpm
@@ -30,6 +32,9 @@ POINTS = [("p0", 1000.0, 150.0), ("p1", 1300.0, 250.0), ("p2", 1600.0, 100.0), (
           ("p4", 2200.0, 200.0), ("p5", 2500.0, 50.0)]
 #: what neither effect explains (N m at order 6): keeps the right effect's held-out gap above 0
 EXTRA = np.array([0, 0, 0, 0, 0, 0.3, 0, 0])
+#: white sensor noise on the measured output [N m RMS]: about 0.3 N m on each order of a
+#: 0.6 s record, so that EXTRA stays within the noise a likelihood judges against
+NOISE_NM = 10.0
 
 
 def bump(rpm: float) -> np.ndarray:
@@ -68,8 +73,9 @@ def point(pid: str, rpm: float, torque: float, amps=None) -> MeasuredPoint:
         amps = amplitudes(with_effect(BASE, "turbine_drag", {"coefficient": 3.0}), rpm, torque) + EXTRA
     t = np.arange(int(SECONDS * RATE) + 1) / RATE
     drive_in = signal(t, rpm, torque, [50.0 / n for n in range(1, 9)])
+    noise = np.random.default_rng(zlib.crc32(pid.encode())).normal(0.0, NOISE_NM, t.size)
     return MeasuredPoint(id=pid, kind="torsional", speed_rpm=rpm, mean_torque_nm=torque, sample_rate_hz=RATE, time=t,
-                         input_torque=drive_in, output_torque=signal(t, rpm, torque, amps),
+                         input_torque=drive_in, output_torque=signal(t, rpm, torque, amps) + noise,
                          input_speed_rpm=np.full(t.size, rpm), output_speed_rpm=np.full(t.size, rpm),
                          file=f"points/{pid}.parquet")
 
@@ -96,8 +102,10 @@ def fake_model(fail=None):
         if how == "raise":
             raise SimulationDiverged(0.1, "runaway windup", system.solver.time_step)
         if how == "nan":
-            return {"orders": np.full(len(drive.ORDERS), np.nan)}
+            return {"orders": np.full(len(drive.ORDERS), np.nan), "coefficients": np.full(len(drive.ORDERS), np.nan + 0j)}
         amps = amplitudes(system, p.speed_rpm, p.mean_torque_nm)
-        return {"orders": order_amplitudes(signal(p.time, p.speed_rpm, p.mean_torque_nm, amps), p.sample_rate_hz,
-                                           p.speed, drive.ORDERS)}
+        # read like the measured output: the same tracked operator on the same record
+        out = dataclasses.replace(p, output_torque=signal(p.time, p.speed_rpm, p.mean_torque_nm, amps))
+        c = measured_coefficients(out, drive.ORDERS)
+        return {"orders": np.abs(c), "coefficients": c}
     return simulate_point

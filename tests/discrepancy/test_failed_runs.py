@@ -76,7 +76,7 @@ def test_a_candidate_that_crashes_the_model_at_held_out_points_cannot_win(monkey
             candidates=candidates)
     assert (d.verdict, d.effect) == (verdict, effect)
     clutch = next(r for r in d.ranking if r["effect"] == "clutch_slip")
-    assert clutch["gap_held_out_nm"] is None and clutch["score"] is None
+    assert clutch["gap_held_out_nm"] is None and clutch["posterior"] == 0.0  # never a match, never probable
     assert clutch["failed_points"] == ["p1", "p4"]
     assert "p1, p4" in clutch["excluded"] and "SimulationDiverged" in clutch["excluded"]
     assert "clutch_slip" in d.message and "not ranked" in d.message

@@ -75,7 +75,10 @@ def test_an_excluded_candidate_shows_why_in_the_ranking_and_the_verdict(crashing
     assert clutch["parameters"] == clutch["excluded"]  # the table's parameters column says why, not "screened out"
     assert drag["excluded"] is None and drag["failed_points"] == [] and drag["parameters"].startswith("coefficient = ")
     reason = verdict_summary(doc)["reason"]
-    assert reason.endswith("Not ranked because their model runs failed: clutch_slip (see the ranking).")
+    # the pair tried with it fails there too
+    assert reason.endswith("Not ranked because their model runs failed: clutch_slip, clutch_slip+turbine_drag (see the "
+                           "ranking).")
+    assert doc["posterior"]["clutch_slip"] == 0.0 and doc["posterior"]["turbine_drag"] > 0.9
 
 
 def test_documents_from_before_the_new_fields_still_read():

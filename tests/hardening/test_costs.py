@@ -84,13 +84,16 @@ def test_sweep_ramp_and_diagnosis_costs_scale_with_their_runs():
     r = costs.ramp_cost(system, 30.0, 2)
     assert r.work == pytest.approx(2 * costs.point_cost(system, 30.0).work)
     d = costs.diagnosis_cost(system, 12, 1.0, 8)
-    assert d.work == pytest.approx(costs.diagnosis_runs(12, 8) * costs.point_cost(system, 1.0).work)
+    design = costs.DIAGNOSIS_DESIGN_RUNS * costs.point_cost(system, costs.DIAGNOSIS_DESIGN_S).work
+    assert d.work == pytest.approx(costs.diagnosis_runs(12, 8) * costs.point_cost(system, 1.0).work + design)
 
 
 def test_diagnosis_counts_follow_the_workflow():
     """The run counts are copied from dampersim.discrepancy.diagnose (a package above the
     cost model): a change there must be carried over here."""
+    from dampersim.discrepancy import design, naming
     from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy.effects import EFFECTS
 
     defaults = {k: p.default for k, p in inspect.signature(dg.diagnose).parameters.items()}
     assert costs.DIAGNOSIS_ITERATIONS == defaults["calibration_iterations"]
@@ -99,9 +102,19 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_SCAN == len(dg.CAL_SCAN)
     assert costs.DIAGNOSIS_STEP_TRIALS == len(dg.CAL_STEP_FRACTIONS)
     grid = inspect.signature(dg._effect_grid).parameters["n"].default
-    assert costs.DIAGNOSIS_FIT_RUNS == grid + dg.REFINE_EVALUATIONS + 3
+    assert costs.DIAGNOSIS_FIT_RUNS == grid + dg.REFINE_EVALUATIONS + 3 + 1
+    assert costs.DIAGNOSIS_PAIR_RUNS == grid + dg.REFINE_EVALUATIONS + 1 + 1
+    assert costs.DIAGNOSIS_SHAPE_RUNS == max(len(v) for v in naming.SHAPES.values()) + 1
+    assert costs.DIAGNOSIS_DETECT_RUNS == len(EFFECTS["clutch_slip"].magnitudes)
+    assert costs.DIAGNOSIS_DESIGN_RUNS >= len(design.DESIGN_SPEEDS) * len(design.DESIGN_TORQUES) * 5
+    assert costs.DIAGNOSIS_DESIGN_S == pytest.approx(0.6 + design.DESIGN_RECORD)
+    # given, calibrated, coarse, six sensitivities, fits and pair with their magnitude sensitivities, the sized top
+    # and the sizing search of the top effect (bounded search + curvature) with its replay
+    assert costs.DIAGNOSIS_RAMP_SIZING == 10 + 2
+    assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1
     # 12 points: 8 training, 4 held out (every third)
-    assert costs.diagnosis_runs(12, 8) == 24 + 24 * 8 + 54 * 8 + 4 + 16 * 8 + 3 * (32 * 8 + 4)
+    assert costs.diagnosis_runs(12, 8) == (24 + 24 * 8 + 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
+                                           + 15 * 8 + 4 + 3 * 8 * 8)
 
 
 def test_budgets_read_the_environment_at_call_time(monkeypatch):

@@ -1,0 +1,265 @@
+"""Naming a missing effect: screen every candidate, fit the promising ones (magnitude,
+shape parameters, pairs), weigh them by Laplace evidence against "no missing effect", and
+estimate for each effect the smallest magnitude this campaign could detect.
+
+All fits work on the training points through the :class:`~dampersim.discrepancy.likelihood.
+Likelihood` (standardised complex residuals with fitted channel gain and delay, robust
+loss); the objective of a model is that loss plus the Gaussian priors of its parameters
+(:mod:`dampersim.discrepancy.selection`). A run that fails costs infinity: a candidate that
+crashes the model is never chosen.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dampersim.discrepancy import drive, selection
+from dampersim.discrepancy.effects import info, parameters_of, with_effect
+from dampersim.discrepancy.fitting import PRIOR_LOG_SD, REFINE_EVALUATIONS, _effect_grid, _lstsq_bounded, \
+    calibrated_system
+
+#: log step of the finite differences for an effect's magnitude
+FD_STEP = 0.1
+#: log step of the finite differences for shape parameters: small, since a tuned absorber's
+#: response is sharply non-linear in its tuning order (2 % is 0.04 orders at order 2)
+SHAPE_FD_STEP = 0.02
+#: shape parameters fitted with an effect's magnitude (log scale, prior SHAPE_PRIOR_SD around
+#: the start value): the pendulum's tuning order and damping, the clutch's slip law, the
+#: short springs' clearance; the other effects have one parameter that matters
+SHAPES = {
+    "pendulum_absorber": ("order", "damping"),
+    "clutch_slip": ("slip_speed", "viscous"),
+    "inner_short_springs": ("clearance",),
+}
+#: smallest screen scale (fitted magnitude / typical magnitude) for a candidate to be fitted
+MIN_SCREEN_SCALE = 0.05
+
+
+class Namer:
+    """The naming step's state: runner, likelihood, training rows and points, the
+    calibration's Jacobian (standardised, at the calibrated factors) and the starts."""
+
+    def __init__(self, runner, lik, train, points, jac, starts, failures):
+        self.runner, self.lik, self.train, self.points = runner, lik, train, points
+        self.jac, self.starts, self.failures = jac, starts, failures
+        self.prec_cal = np.full(jac.shape[1], 1.0 / PRIOR_LOG_SD ** 2)
+
+    # --- runs and costs -------------------------------------------------------------------
+    def runs(self, system, name, points=None):
+        """Complex coefficients of ``system`` at the training points (or ``points``) and
+        whether a run failed (recorded against candidate ``name``)."""
+        pts = self.points if points is None else points
+        errs = {}
+        y = drive.coefficients_of(self.runner, system, pts, errs)
+        for j, msg in errs.items():
+            self.failures.setdefault(name, {}).setdefault(pts[j].id, msg)
+        return y, bool(errs)
+
+    def cost(self, y, x, extra: float = 0.0) -> float:
+        """Objective of a model: robust loss (nuisance fitted) + calibration prior + ``extra``
+        (the effect parameters' prior terms)."""
+        loss, _ = self.lik.profile(y, self.train)
+        return loss + float(np.sum(np.asarray(x) ** 2)) / PRIOR_LOG_SD ** 2 + extra
+
+    def w(self, dy) -> np.ndarray:
+        """Standardised vector of a change of model coefficients (linear in dy)."""
+        return self.lik.vec(dy, self.train)
+
+    # --- screen -----------------------------------------------------------------------------
+    def screen(self, name):
+        """Linearised joint fit of the effect at its typical magnitude with a re-calibration,
+        from each start: {start, scale, log_evidence relative to "none" from the same start,
+        cost}; the start with the higher relative evidence is kept."""
+        e = info(name)
+        best = None
+        for start, (s0, x0, y_s) in self.starts.items():
+            ye, failed = self.runs(with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), name)
+            if failed:
+                cand = {"start": start, "scale": 0.0, "rel_log_evidence": -math.inf, "cost": math.inf, "y": None}
+            else:
+                with self.lik.using(self.lik.profile(y_s, self.train)[1]):  # this start's own nuisance
+                    r = self.lik.mvec(self.train) - self.lik.vec(y_s, self.train)
+                    d = self.w(ye - y_s)
+                z0 = selection.linear_screen_evidence(r, self.jac, None, x0, PRIOR_LOG_SD)[0]
+                z, s, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD)
+                cand = {"start": start, "scale": s, "rel_log_evidence": z - z0, "cost": c, "y": ye}
+            if best is None or cand["rel_log_evidence"] > best["rel_log_evidence"]:
+                best = cand
+        return best
+
+    # --- fits --------------------------------------------------------------------------------
+    def _magnitude_prior(self, name, m) -> float:
+        e = info(name)
+        return ((math.log(m) - math.log(e.magnitudes[1])) / selection.MAGNITUDE_PRIOR_SD) ** 2
+
+    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None):
+        """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple
+        (system, x, y) to fit on top of another effect): a five-value grid, a bounded search
+        in log magnitude, a linearised re-calibration at every trial, then real runs against
+        the re-calibrated, the start's and the estimated factors. Returns a dict (cost, m, x,
+        y, system, column: the standardised derivative w.r.t. log m) or None when every
+        run failed. extra_prior: prior terms of parameters fitted before (a pair's first
+        effect); label: the model failed runs are recorded against (default ``name``)."""
+        from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
+
+        e = info(name)
+        label = label or name
+        s0, x0, _ = self.starts[start] if isinstance(start, str) else start
+        tried = {}
+
+        def at(m):
+            if m not in tried:
+                ym, failed = self.runs(with_effect(s0, name, {e.magnitude: float(m)}), label)
+                if failed:
+                    tried[m] = (math.inf, x0)
+                    return tried[m]
+                # two candidates for the calibration at this magnitude: the start's factors as
+                # they are (exact: the robust loss with the nuisance fitted to this run), and a
+                # linearised re-calibration under the prior around this run (at its own
+                # nuisance); the re-calibrated factors are verified by real runs below
+                extra = self._magnitude_prior(name, m) + extra_prior
+                loss0, nu = self.lik.profile(ym, self.train)
+                exact = loss0 + float(np.sum(x0 ** 2)) / PRIOR_LOG_SD ** 2 + extra
+                with self.lik.using(nu):
+                    r = self.lik.mvec(self.train) - self.lik.vec(ym, self.train)
+                dx = _lstsq_bounded(self.jac, r, x0)
+                rr = r - self.jac @ dx
+                lin = (float(rr @ rr) + self.lik.nuisance_prior(nu) + float(np.sum((x0 + dx) ** 2)) / PRIOR_LOG_SD ** 2
+                       + extra)
+                tried[m] = (exact, x0) if exact <= lin else (lin, x0 + dx)
+            return tried[m]
+
+        grid = _effect_grid(name)
+        i = int(np.argmin([at(float(m))[0] for m in grid]))
+        lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
+        with np.errstate(invalid="ignore", over="ignore"):
+            minimize_scalar(lambda u: at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
+                            options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})
+        m, (c_lin, x_fit) = min(tried.items(), key=lambda kv: kv[1][0])
+        if not math.isfinite(c_lin):
+            return None
+        base = s0 if not isinstance(start, str) else None
+        options = [x_fit, x0, np.zeros_like(x0)] if base is None else [x0]
+        best = None
+        for xo in options:
+            sysx = _with_factors(self.starts, base, xo)
+            ys, failed = self.runs(with_effect(sysx, name, {e.magnitude: m}), label)
+            c = math.inf if failed else self.cost(ys, xo, self._magnitude_prior(name, m) + extra_prior)
+            if best is None or c < best["cost"]:
+                best = {"cost": c, "m": float(m), "x": xo, "y": ys, "base": base,
+                        "system": with_effect(sysx, name, {e.magnitude: m}), "shapes": {}}
+        if not math.isfinite(best["cost"]):
+            return None
+        yd, failed = self.runs(with_effect(best["system"], name, {e.magnitude: m * math.exp(FD_STEP)}), label)
+        best["column"] = np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - best["y"]) / FD_STEP)
+        return best
+
+    def fit_shapes(self, name, fit):
+        """One Gauss-Newton step on the effect's shape parameters (log scale, prior
+        SHAPE_PRIOR_SD) jointly with its magnitude and the calibration, accepted when a real
+        run lowers the objective. Adds the shape columns to ``fit`` (for the evidence and the
+        intervals) and returns it."""
+        shapes = SHAPES.get(name, ())
+        if not shapes or fit is None or fit.get("base") is not None:  # not on top of another effect
+            return fit
+        meta = {p["name"]: p for p in parameters_of(name)}
+        cur = getattr(fit["system"].effects, name)
+        start = {q: float(getattr(cur, q)) for q in shapes if float(getattr(cur, q)) > 0}
+        cols = []
+        for q, v in start.items():
+            up = _clip(v * math.exp(SHAPE_FD_STEP), meta[q])
+            yq, failed = self.runs(with_effect(fit["system"], name, {q: up}), name)
+            cols.append(np.zeros_like(fit["column"]) if failed or up == v else self.w((yq - fit["y"]) / math.log(up / v)))
+        fit["shape_start"], fit["shape_columns"] = dict(start), cols
+        if not cols:
+            return fit
+        jac = np.column_stack([self.jac, fit["column"], *cols])
+        n = self.jac.shape[1]
+        prec = np.concatenate([self.prec_cal, [1.0 / selection.MAGNITUDE_PRIOR_SD ** 2],
+                               np.full(len(cols), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
+        centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])], np.zeros(len(cols))])
+        with self.lik.using(self.lik.profile(fit["y"], self.train)[1]):
+            r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
+        step = np.linalg.solve(jac.T @ jac + np.diag(prec), jac.T @ r + prec * centre)
+        new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
+        m = fit["m"] * math.exp(float(step[n]))
+        x = np.clip(fit["x"] + step[:n], -math.log(2.0), math.log(2.0))
+        e = info(name)
+        sysn = with_effect(_with_factors(self.starts, None, x), name, {**new, e.magnitude: m})
+        yn, failed = self.runs(sysn, name)
+        extra = self._magnitude_prior(name, m) + sum(
+            (math.log(new[q] / start[q]) / selection.SHAPE_PRIOR_SD) ** 2 for q in new)
+        c = math.inf if failed else self.cost(yn, x, extra)
+        if c < fit["cost"]:
+            fit.update({"cost": c, "m": m, "x": x, "y": yn, "system": sysn, "shapes": new})
+        return fit
+
+    def evidence(self, fit, names, bias=None) -> tuple:
+        """(log evidence, covariance) of a fitted effect model; ``names``: its effects (the fit
+        carries one magnitude column per effect in ``columns``).
+
+        The covariance is the Laplace posterior covariance plus, with ``bias`` (the
+        standardised change of the training coefficients under the discretisation check),
+        the square of the parameter shift that change would cause if it were all
+        systematic: the model's own discretisation error moves a fitted magnitude without
+        adding scatter, and an interval from the scatter alone would not cover it."""
+        cols = fit["columns"]
+        jac = np.column_stack([self.jac, *cols])
+        prec = np.concatenate([self.prec_cal, np.full(len(names), 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2),
+                               np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
+        cov = selection.posterior_covariance(jac, prec)
+        if bias is not None:
+            shift = cov @ (jac.T @ bias)
+            cov = cov + np.outer(shift, shift)
+        return selection.log_evidence(fit["cost"], jac, prec), cov
+
+    # --- detectability --------------------------------------------------------------------
+    def detectability(self, name, y_cal, y_typ, priors) -> float | None:
+        """The magnitude at the detection threshold of effect ``name`` for this campaign:
+        where the chi^2 improvement it would bring after the calibration has absorbed what it
+        can (its signature projected off the calibration directions under their prior)
+        reaches what a posterior of DETECTION_POSTERIOR against "none" needs."""
+        e = info(name)
+        meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
+        cal = self.starts["calibrated"][0]
+        a = self.jac.T @ self.jac + np.diag(self.prec_cal)
+        mags, gains = [], []
+        for m in e.magnitudes:
+            if m == e.magnitudes[1] and y_typ is not None:
+                y = y_typ
+            else:
+                y, failed = self.runs(with_effect(cal, name, {e.magnitude: m}), name)
+                if failed:
+                    continue
+            d = self.w(y - y_cal)
+            proj = self.jac.T @ d
+            mags.append(m)
+            gains.append(float(d @ d - proj @ np.linalg.solve(a, proj)))
+        if len(mags) < 2:
+            return None
+        base = 2.0 * math.log(selection.DETECTION_POSTERIOR / (1.0 - selection.DETECTION_POSTERIOR)
+                              * priors["none"] / priors[name])
+        needed = base
+        for _ in range(20):  # needed = base + ln(1 + needed * MAG_SD^2): the Occam penalty at the threshold
+            needed = base + math.log(1.0 + needed * selection.MAGNITUDE_PRIOR_SD ** 2)
+        return selection.threshold_magnitude(mags, gains, needed, e.grows, (meta["min"], meta["max"]))
+
+
+def _with_factors(starts, base, x):
+    """The estimated parameter set (the estimated start's) with calibration factors exp(x),
+    or ``base`` unchanged when fitting on top of another effect."""
+    return base if base is not None else calibrated_system(starts["estimated"][0], x)
+
+
+def _clip(v, meta) -> float:
+    lo, hi = meta["min"], meta["max"]
+    if lo is not None:
+        v = max(v, lo * 1.0001 if lo > 0 else v)
+    if hi is not None:
+        v = min(v, hi)
+    return float(v)
+
+
+__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "Namer"]

@@ -1,0 +1,156 @@
+"""Model selection by evidence: "no missing effect" against each candidate and pairs.
+
+Every model is the calibrated damper (six log calibration factors under a Gaussian prior of
+spread PRIOR_LOG_SD), the channels' nuisance (gain and delay, see
+:mod:`dampersim.discrepancy.likelihood`) and, for an effect, the log of its magnitude
+parameter under a Gaussian prior centred on the effect's typical value with spread
+MAGNITUDE_PRIOR_SD. The evidence is the Laplace approximation around the fit:
+
+    log Z = -C/2 + log det(P)/2 - log det(J'J + P)/2
+
+with C the minimised objective (robust chi^2 plus the priors' quadratic terms), J the
+Jacobian of the standardised residuals with respect to all fitted parameters and P the
+priors' precision. The last two terms are the Occam factor: a parameter the data do not
+need costs evidence. Posterior probabilities follow from the evidence and the model priors
+of MODEL_PRIOR (stated in docs/discrepancy.md); 90 % intervals of a fitted parameter are
+its estimate +- 1.645 posterior standard deviations in log space (from (J'J + P)^-1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: prior spread of an effect's log magnitude around its typical value (a factor e = 2.7 per
+#: standard deviation: the library's weak and strong values lie within one of it)
+MAGNITUDE_PRIOR_SD = 1.0
+#: prior spread of a fitted shape parameter's log around its starting value
+SHAPE_PRIOR_SD = 0.5
+#: prior probability of the model classes: no missing effect, one effect (shared equally),
+#: a pair of effects (shared equally among the pairs tried)
+MODEL_PRIOR = {"none": 0.5, "single": 0.4, "pair": 0.1}
+#: the normal quantile of a two-sided 90 % interval
+Z90 = 1.6448536269514722
+#: posterior probability a named effect must reach against "none" for detection
+DETECTION_POSTERIOR = 0.9
+
+
+def log_evidence(cost: float, jac, prior_precision) -> float:
+    """Laplace log evidence of a fit (up to a constant common to all models).
+
+    cost: minimised objective (chi^2 plus prior quadratic terms); jac: Jacobian of the
+    standardised residuals w.r.t. the fitted parameters (rows x parameters); prior_precision:
+    the parameters' prior precisions (1 / sd^2)."""
+    if not math.isfinite(cost):
+        return -math.inf
+    jac = np.asarray(jac, dtype=float)
+    p = np.asarray(prior_precision, dtype=float)
+    a = jac.T @ jac + np.diag(p)
+    sign, logdet = np.linalg.slogdet(a)
+    if sign <= 0:
+        return -math.inf
+    return float(-0.5 * cost + 0.5 * np.sum(np.log(p)) - 0.5 * logdet)
+
+
+def posterior_covariance(jac, prior_precision) -> np.ndarray:
+    """(J'J + P)^-1: the Laplace posterior covariance of the fitted parameters."""
+    jac = np.asarray(jac, dtype=float)
+    return np.linalg.inv(jac.T @ jac + np.diag(np.asarray(prior_precision, dtype=float)))
+
+
+def interval90(log_value: float, log_sd: float) -> list:
+    """90 % interval [low, high] of a parameter estimated in log space."""
+    return [math.exp(log_value - Z90 * log_sd), math.exp(log_value + Z90 * log_sd)]
+
+
+def model_priors(singles, pairs) -> dict:
+    """Prior probability of every model: "none", each single effect, each pair "a+b"."""
+    out = {"none": MODEL_PRIOR["none"]}
+    share = MODEL_PRIOR["single"] + (0.0 if pairs else MODEL_PRIOR["pair"])
+    for s in singles:
+        out[s] = share / len(singles)
+    for p in pairs:
+        out[p] = MODEL_PRIOR["pair"] / len(pairs)
+    total = sum(out.values())
+    return {k: v / total for k, v in out.items()}
+
+
+def posterior(log_z: dict, priors: dict) -> dict:
+    """Posterior probabilities {model: p} from log evidences and model priors (models with
+    -inf evidence get 0); they sum to 1."""
+    logs = {m: math.log(priors[m]) + z for m, z in log_z.items() if math.isfinite(z)}
+    if not logs:
+        return {m: (1.0 if m == "none" else 0.0) for m in log_z}
+    top = max(logs.values())
+    w = {m: math.exp(v - top) for m, v in logs.items()}
+    s = sum(w.values())
+    return {m: w.get(m, 0.0) / s for m in log_z}
+
+
+def linear_screen_evidence(r_w, jac_w, d_w, x0, prior_sd, mag_sd=MAGNITUDE_PRIOR_SD):
+    """Laplace evidence of the linearised joint fit r_w ~ jac_w dx + d_w s (exact for a linear
+    model): calibration change dx under the prior on the total factors x0 + dx (spread
+    prior_sd), effect scale s = magnitude / typical magnitude under N(1, mag_sd) (d_w None:
+    calibration only). Returns (log evidence, s, dx, cost)."""
+    n = jac_w.shape[1]
+    cols = jac_w if d_w is None else np.column_stack([jac_w, d_w])
+    prec = np.full(cols.shape[1], 1.0 / prior_sd ** 2)
+    centre = np.concatenate([-np.asarray(x0, dtype=float), [] if d_w is None else [1.0]])
+    if d_w is not None:
+        prec[n] = 1.0 / mag_sd ** 2
+    a = cols.T @ cols + np.diag(prec)
+    sol = np.linalg.solve(a, cols.T @ r_w + prec * centre)
+    res = r_w - cols @ sol
+    cost = float(res @ res + np.sum(prec * (sol - centre) ** 2))
+    sign, logdet = np.linalg.slogdet(a)
+    logz = -0.5 * cost + 0.5 * float(np.sum(np.log(prec))) - 0.5 * logdet
+    return logz, (float(sol[n]) if d_w is not None else 0.0), sol[:n], cost
+
+
+def detection_chi2(prior_single: float, prior_none: float, occam: float) -> float:
+    """The chi^2 improvement an effect must bring for its posterior to reach
+    DETECTION_POSTERIOR against "none" (two-model comparison): 2 ln(odds needed x prior
+    ratio) plus twice the Occam penalty ``occam`` (ln of the evidence lost to the fitted
+    magnitude)."""
+    odds = DETECTION_POSTERIOR / (1.0 - DETECTION_POSTERIOR)
+    return 2.0 * (math.log(odds * prior_none / prior_single) + occam)
+
+
+def threshold_magnitude(mags, chi2_gain, needed: float, grows: bool, bounds=(None, None)):
+    """The magnitude at which the achievable chi^2 improvement reaches ``needed``.
+
+    mags, chi2_gain: magnitudes tried (any order) and the chi^2 improvement an effect of that
+    size would bring after the calibration has absorbed what it can (projected signature,
+    squared). Interpolated in log magnitude and log gain; for an effect that grows with its
+    magnitude extrapolated below the smallest value tried with gain ~ m^2 (small effects are
+    linear in their magnitude), never beyond ``bounds``. None when no magnitude within reach
+    is detectable."""
+    m = np.asarray(mags, dtype=float)
+    g = np.maximum(np.asarray(chi2_gain, dtype=float), 1e-300)
+    order = np.argsort(m)
+    m, g = m[order], g[order]
+    strength = m if grows else 1.0 / m  # larger: stronger effect
+    o = np.argsort(strength)
+    s, g, m = strength[o], g[o], m[o]
+    lo_b, hi_b = bounds
+    if g[-1] < needed:
+        return None
+    if g[0] >= needed:
+        if not grows:
+            return float(m[0])  # weaker than the weakest tried is not extrapolated
+        val = float(m[0] * math.sqrt(needed / g[0]))
+        return max(val, lo_b) if lo_b is not None else val
+    k = int(np.argmax(g >= needed))
+    u = (math.log(needed) - math.log(g[k - 1])) / (math.log(g[k]) - math.log(g[k - 1]))
+    val = float(math.exp(math.log(m[k - 1]) + u * (math.log(m[k]) - math.log(m[k - 1]))))
+    if lo_b is not None:
+        val = max(val, lo_b)
+    if hi_b is not None:
+        val = min(val, hi_b)
+    return val
+
+
+__all__ = ["MAGNITUDE_PRIOR_SD", "SHAPE_PRIOR_SD", "MODEL_PRIOR", "Z90", "DETECTION_POSTERIOR", "log_evidence",
+           "posterior_covariance", "interval90", "model_priors", "posterior", "linear_screen_evidence",
+           "detection_chi2", "threshold_magnitude"]

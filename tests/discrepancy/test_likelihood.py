@@ -1,0 +1,148 @@
+"""The diagnosis likelihood and model selection arithmetic (no simulation)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import selection
+from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, ROBUST_C, Likelihood, cell_sigma, robust_weights
+
+ORDERS = np.arange(1.0, 9.0)
+
+
+def _campaign(n=12, seed=0, sigma=0.05):
+    rng = np.random.default_rng(seed)
+    speed = rng.uniform(100.0, 300.0, n)  # rad/s
+    model = (rng.uniform(1.0, 20.0, (n, 8)) * np.exp(1j * rng.uniform(-3, 3, (n, 8))))
+    noise = sigma / math.sqrt(2) * (rng.standard_normal((n, 8)) + 1j * rng.standard_normal((n, 8)))
+    return speed, model, noise, np.full((n, 8), sigma)
+
+
+def test_channel_skew_and_gain_are_fitted_not_left_as_misfit():
+    """A 0.2 ms output delay and a 2 % gain error are recovered as nuisance; the remaining
+    misfit is at the noise level (reduced chi^2 near 1). Without the nuisance fit the skew
+    alone leaves a misfit hundreds of times the noise: it would read as a physical effect
+    such as a transducer's bandwidth."""
+    speed, model, noise, sigma = _campaign()
+    tau, gain = 2e-4, 1.02
+    meas = gain * model * np.exp(-1j * np.outer(speed, ORDERS) * tau) + noise
+    lik = Likelihood(meas, sigma, speed, ORDERS)
+    rows = list(range(len(meas)))
+    unfitted = lik.reduced_chi2(model, rows)
+    nu = lik.fit_nuisance(model, rows)
+    assert nu[1] == pytest.approx(tau, rel=0.01)  # the delay to 1 % (noise 0.05 N m on orders of 1-20 N m)
+    assert math.exp(nu[0]) == pytest.approx(gain, rel=0.002)
+    fitted = lik.reduced_chi2(model, rows)
+    assert unfitted > 100.0
+    assert 0.7 < fitted < 1.3  # 192 real residuals: chi^2/dof within +-0.3 of 1 at about 3 sigma
+
+
+def test_robust_loss_flags_the_one_bad_point_and_bounds_its_weight():
+    speed, model, noise, sigma = _campaign(seed=1)
+    meas = model + noise
+    meas[5] += 3.0  # one point 60 sigma off at every order
+    lik = Likelihood(meas, sigma, speed, ORDERS)
+    rows = list(range(len(meas)))
+    flags = lik.outliers(model, rows)
+    assert np.flatnonzero(flags).tolist() == [5]
+    chi = lik.point_chi2(model, rows)
+    _, loss, _ = robust_weights(chi, 16)
+    # the bad point's loss grows linearly, not quadratically, with its misfit
+    assert loss[5] < 0.2 * chi[5]
+    assert np.allclose(np.delete(loss, 5), np.delete(chi, 5))
+
+
+def test_robust_threshold_follows_the_median_point():
+    """When every point misfits alike (a missing effect), none is an outlier."""
+    chi = np.full(10, 16 * 50.0)
+    _, _, big = robust_weights(chi, 16)
+    assert not big.any()
+    chi[3] *= (2 * ROBUST_C) ** 2
+    assert robust_weights(chi, 16)[2].tolist() == [i == 3 for i in range(10)]
+
+
+def test_cell_sigma_pools_the_repeatability_per_order():
+    rep = np.ones((6, 8)) * 0.1
+    rep[2, 3] = 0.0  # a single lucky split-half sample must not make a cell exact
+    s = cell_sigma(rep, np.zeros((6, 8)), np.full((6, 8), 10.0))
+    assert s[2, 3] >= 0.07  # half the pooled variance at least
+    # a typical cell: the mean of its own variance and the pooled one (median / ln 2), plus the floor
+    assert s[0, 0] == pytest.approx(math.sqrt(0.5 * (0.01 + 0.01 / math.log(2.0)) + 1e-4), rel=1e-9)
+
+
+def test_pooled_repeatability_is_unbiased_for_gaussian_noise():
+    """Split-half samples of complex Gaussian noise of variance v: the pooled variance
+    (median / ln 2) estimates v without the 31 % bias of a plain median."""
+    rng = np.random.default_rng(5)
+    v = 0.04
+    rep = np.abs(math.sqrt(v / 2) * (rng.standard_normal((4000, 8)) + 1j * rng.standard_normal((4000, 8))))
+    s = cell_sigma(rep, np.zeros_like(rep), np.full_like(rep, 1e-3))
+    assert np.mean(s ** 2) == pytest.approx(v, rel=0.03)  # 32 000 samples: about 1 % statistical error
+    assert np.all(s >= 1e-3 * 10.0)
+
+
+def test_laplace_evidence_is_exact_for_a_linear_gaussian_model():
+    """For r = J theta + noise with a Gaussian prior the Laplace evidence is exact: compare
+    with the closed form of the marginal likelihood N(r; 0, I + J P^-1 J')."""
+    rng = np.random.default_rng(2)
+    jac = rng.standard_normal((30, 3))
+    prec = np.array([4.0, 1.0, 25.0])
+    r = jac @ rng.standard_normal(3) + rng.standard_normal(30)
+    a = jac.T @ jac + np.diag(prec)
+    theta = np.linalg.solve(a, jac.T @ r)
+    cost = float((r - jac @ theta) @ (r - jac @ theta) + theta @ (prec * theta))
+    lz = selection.log_evidence(cost, jac, prec)
+    cov = np.eye(30) + jac @ np.diag(1 / prec) @ jac.T
+    exact = -0.5 * r @ np.linalg.solve(cov, r) - 0.5 * np.linalg.slogdet(cov)[1]
+    assert lz == pytest.approx(exact, abs=1e-9)
+
+
+def test_linear_screen_prefers_none_without_signal_and_the_effect_with_it():
+    rng = np.random.default_rng(3)
+    jac = rng.standard_normal((64, 6))
+    d = rng.standard_normal(64) * 0.8  # an effect's signature at its typical magnitude
+    noise = rng.standard_normal(64)
+    x0 = np.zeros(6)
+    z0 = selection.linear_screen_evidence(noise, jac, None, x0, 0.2)[0]
+    z1 = selection.linear_screen_evidence(noise, jac, d, x0, 0.2)[0]
+    assert z1 < z0  # Occam: an unneeded magnitude costs evidence
+    r = noise + 3.0 * d
+    z0 = selection.linear_screen_evidence(r, jac, None, x0, 0.2)[0]
+    z1, s, _, _ = selection.linear_screen_evidence(r, jac, d, x0, 0.2)
+    assert z1 > z0 + 10 and s == pytest.approx(3.0, rel=0.15)
+
+
+def test_posterior_sums_to_one_and_follows_priors():
+    pri = selection.model_priors(["a", "b"], ["a+b"])
+    assert sum(pri.values()) == pytest.approx(1.0)
+    assert pri["none"] == pytest.approx(0.5)
+    post = selection.posterior({"none": 0.0, "a": 0.0, "b": -math.inf, "a+b": 0.0}, pri)
+    assert sum(post.values()) == pytest.approx(1.0) and post["b"] == 0.0
+    # equal evidence: the prior, renormalised over the models whose runs did not fail
+    assert post["none"] == pytest.approx(pri["none"] / (1.0 - pri["b"]))
+
+
+def test_threshold_magnitude_interpolates_and_extrapolates_honestly():
+    grows = selection.threshold_magnitude([1.0, 2.0, 4.0], [1.0, 4.0, 16.0], 9.0, True)
+    assert grows == pytest.approx(3.0, rel=1e-9)  # gain ~ m^2 -> 9 at m = 3
+    assert selection.threshold_magnitude([1.0, 2.0, 4.0], [10.0, 40.0, 160.0], 2.5, True) == pytest.approx(0.5)
+    assert selection.threshold_magnitude([1.0, 2.0, 4.0], [0.1, 0.2, 0.4], 9.0, True) is None
+    # an upper threshold (clutch capacity): smaller values are the stronger effect
+    upper = selection.threshold_magnitude([620.0, 540.0, 470.0], [1.0, 9.0, 50.0], 9.0, False)
+    assert upper == pytest.approx(540.0)
+
+
+def test_interval90_covers_the_normal_quantiles():
+    lo, hi = selection.interval90(math.log(2.0), 0.1)
+    assert lo == pytest.approx(2.0 * math.exp(-0.1 * 1.6448536), rel=1e-7)
+    assert hi == pytest.approx(2.0 * math.exp(0.1 * 1.6448536), rel=1e-7)
+
+
+def test_delay_prior_keeps_an_unidentifiable_delay_at_zero():
+    """With a model that has no phase information (all orders at zero amplitude) the delay
+    stays at its prior mean instead of wandering."""
+    speed, model, noise, sigma = _campaign(seed=4)
+    lik = Likelihood(noise, sigma, speed, ORDERS)
+    nu = lik.fit_nuisance(np.zeros_like(model), list(range(len(model))))
+    assert abs(nu[1]) < 1e-3 * DELAY_PRIOR_SD

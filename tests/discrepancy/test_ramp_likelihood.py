@@ -1,0 +1,66 @@
+"""Ramp windup curves in the likelihood (no simulation: windups are given)."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy.ramps import OFFSET_PRIOR_DEG, RampLikelihood, windup_noise
+from tests.discrepancy import fake_rig as F
+
+
+def _noisy(p, sd, seed=0):
+    rng = np.random.default_rng(seed)
+    return dataclasses.replace(p, windup=p.windup + rng.normal(0.0, sd, p.windup.size))
+
+
+def test_a_matching_model_scores_chi2_near_its_sample_count():
+    """Pure white noise on the windup channel: the model that produced the ramp scores a
+    chi^2 per sample near 1 (the noise estimate after the 10 Hz low pass is right)."""
+    sd = math.radians(0.5)
+    pts = [_noisy(F.ramp(f"r{i}"), sd, i) for i in range(4)]
+    truth = {p.id: F.ramp(p.id).windup for p in pts}
+    lik = RampLikelihood(pts, truth, truth)
+    total, per = lik.chi2(truth)
+    assert 0.5 < total / lik.residuals < 1.6  # 24 samples: chi^2/dof scatters by about +-0.3 at 1 sigma
+    assert set(per) == {p.id for p in pts}
+    assert windup_noise(pts[0]) == pytest.approx(sd * math.sqrt(math.pi * 10.0 / 1000.0), rel=0.1)
+
+
+def test_an_angle_offset_is_a_nuisance_but_a_free_play_step_is_not():
+    p = F.ramp("r0")
+    lik = RampLikelihood([p], {p.id: p.windup}, {p.id: p.windup})
+    offset = np.radians(OFFSET_PRIOR_DEG)  # one prior sd: costs about 1
+    assert lik.chi2({p.id: p.windup + offset})[0] < 2.0
+    # a 0.2 deg step where the torque changes sign (free play) is not absorbed
+    tq = p.input_torque
+    step = np.where(np.gradient(tq) > 0, 0.0, np.radians(0.2))
+    assert lik.chi2({p.id: p.windup + step})[0] > 100.0
+
+
+def test_a_failed_ramp_run_is_never_a_match():
+    p = F.ramp("r0")
+    lik = RampLikelihood([p], {p.id: p.windup}, {p.id: p.windup})
+    assert lik.chi2({p.id: "SimulationDiverged: runaway windup"})[0] == math.inf
+    assert lik.chi2({})[0] == math.inf
+
+
+def test_the_ramp_prediction_carries_the_fit_uncertainty_and_sizes_the_parameter():
+    """A model whose parameter the torsional fit left uncertain (log sd 1) is not condemned by
+    a ramp that needs the parameter 30 % larger: the prediction's covariance holds that
+    direction, and the conditioned update recovers the parameter (linear toy: windup
+    proportional to the parameter)."""
+    p = _noisy(F.ramp("r0"), math.radians(0.05))
+    shape = F.ramp("r0").windup  # windup at parameter value 1 (log parameter 0)
+    meas = dataclasses.replace(p, windup=1.3 * shape + (p.windup - shape))
+    model = {p.id: shape}
+    lik = RampLikelihood([meas], model, model)
+    col = lik.column({p.id: shape * math.exp(0.01)}, model, 0.01)  # d samples / d log parameter
+    ll_unsure, chi_unsure, upd, cov = lik.predictive(model, col[:, None], np.array([[1.0]]))
+    assert lik.scale < 2.0  # the uncertain parameter explains the ramp: channel noise is enough
+    ll_sure, chi_sure, _, _ = lik.predictive(model, col[:, None], np.array([[1e-6]]))
+    assert lik.scale > 10.0  # a sure, wrong parameter: only a large misfit scale makes the ramp likely
+    assert ll_unsure > ll_sure + 10  # odds above 20 000 to 1
+    assert math.exp(upd[0]) == pytest.approx(1.3, rel=0.05)  # linearised in log: exp(0.262) against 1.3
+    assert cov[0, 0] < 0.01
