@@ -66,8 +66,12 @@ def probability(row, name: str):
 
 
 def top_model(row) -> str:
-    """The model with the highest posterior (``none``, an effect, or ``a+b``); without a
-    posterior the adopted effect(s) (``none`` for none)."""
+    """The verdict's model (``likelihood.model``: the most probable of the models with a
+    held-out run), else the model with the highest posterior (``none``, an effect, or
+    ``a+b``); without a posterior the adopted effect(s) (``none`` for none)."""
+    model = (row.get("likelihood") or {}).get("model")
+    if isinstance(model, str):
+        return model
     post = row.get("posterior") or {}
     vals = {k: float(v) for k, v in post.items() if v is not None and math.isfinite(float(v))}
     if vals:

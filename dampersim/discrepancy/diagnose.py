@@ -24,9 +24,8 @@ from dampersim.discrepancy import design, drive, naming, selection
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
-                                           GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, _cal_cost, _effect_grid,
-                                           _joint_screen, _lstsq_bounded, _resid, _rms, calibrated_system,
-                                           coarse_system)
+                                           GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, _effect_grid,
+                                           _lstsq_bounded, _resid, _rms, calibrated_system, coarse_system)
 from dampersim.discrepancy.likelihood import Likelihood, cell_sigma, measured_coefficients, split_half_sigma
 from dampersim.discrepancy.naming import MIN_SCREEN_SCALE, Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
@@ -157,6 +156,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         y_cal = np.zeros_like(y0)
         y_cal[train], y_cal[held] = y_tr, y_cal_h
         dropped = {held[j] for j in err_cal}
+        y_cal_h = y_cal_h[[j for j in range(len(held)) if j not in err_cal]]  # the held-out points that ran
         problems += [drive.run_problem(pts[held[j]], f"the model run with the calibrated parameter set failed ({msg}); "
                                        "the point is left out of the verdict") for j, msg in err_cal.items()]
         held = [i for i in held if i not in dropped]
@@ -175,17 +175,18 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             screen[name] = namer.screen(name)
         order = sorted(cands, key=lambda n: -screen[n]["rel_log_evidence"])
         shortlisted = [n for n in order if screen[n]["scale"] > MIN_SCREEN_SCALE][:shortlist] or order[:1]
-        c_none = cost(y_tr, x)
-        z_none = selection.log_evidence(c_none, jac, namer.prec_cal)
-        models = {"none": {"cost": c_none, "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "log_z": z_none,
-                           "effects": [], "nuisance": lik.profile(y_tr, train)[1]}}
         held_pts = [pts[i] for i in held]
         bias_w = lik.vec(np.nan_to_num(y_coarse[train] - y0[train]), train)  # the discretisation check, standardised
+        models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
+                           "columns": [], "nuisance": lik.profile(y_tr, train)[1], "start": "calibrated"}}
+        models["none"]["log_z"], models["none"]["cov"] = namer.evidence(models["none"], [], bias_w)
+        z_none = models["none"]["log_z"]
+        unfitted = {}  # shortlisted candidates every fit of which failed: no evidence
 
         def finish(label, fit, names):
             """Evidence, held-out run and intervals of a fitted model ``label``."""
-            fit["log_z"], fit["cov"] = namer.evidence(fit, names, bias_w)
             fit["nuisance"] = lik.profile(fit["y"], train)[1]
+            fit["log_z"], fit["cov"] = namer.evidence(fit, names, bias_w)
             yh, failed = namer.runs(fit["system"], label, held_pts)
             fit["yh"] = None if failed else yh
             models[label] = fit
@@ -196,6 +197,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             tried = [pref] + [s for s in starts if s != pref]
             fits = [f for f in (namer.fit(name, s) for s in tried) if f is not None]
             if not fits:
+                unfitted[name] = (f"not ranked: the model runs with {name} failed at every magnitude tried "
+                                  f"({drive.failed_text(failures.get(name, {}))})")
                 continue
             fit = namer.fit_shapes(name, min(fits, key=lambda f: f["cost"]))
             fit["effects"] = [name]
@@ -206,10 +209,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         best_single = max(singles, key=lambda n: models[n]["log_z"], default=None)
         if best_single is not None and len(singles) >= 2:
             f1 = models[best_single]
-            if models[best_single]["yh"] is None or lik.reduced_chi2(f1["yh"], held, f1["nuisance"]) > level:
+            if models[best_single]["yh"] is None or lik.robust_reduced_chi2(f1["yh"], held, f1["nuisance"]) > level:
                 report(0.78, "name: trying a pair of effects")
                 second = max((n for n in singles if n != best_single), key=lambda n: models[n]["log_z"])
-                prior_1 = namer._magnitude_prior(best_single, f1["m"])
+                # the first effect stays as fitted: its magnitude's and shapes' prior terms count
+                prior_1 = namer._magnitude_prior(best_single, f1["m"]) + sum(
+                    (math.log(v / f1["shape_start"][q]) / selection.SHAPE_PRIOR_SD) ** 2
+                    for q, v in f1.get("shapes", {}).items())
                 label = "+".join(sorted([best_single, second]))
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label)
                 if fit is not None:
@@ -236,6 +242,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         for label, fit in models.items():  # a model whose held-out run failed is no match: no evidence
             if fit["yh"] is None:
                 log_z[label] = -math.inf
+        for name in unfitted:
+            log_z[name] = -math.inf
         priors = selection.model_priors(cands, pairs)
         post = selection.posterior(log_z, priors)
         judged = [m for m in models if models[m]["yh"] is not None]
@@ -244,7 +252,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             report(0.82, f"ramps: sizing {top}")
             if _size_by_ramps(runner, models[top], pts, train, held, lik, ramp_lik, ramp_lik.cols_x, campaign.ramps):
                 ramp_runs[top] = ramps_lik.run_ramps(runner, models[top]["system"], campaign.ramps)
-        chi = {m: lik.reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
+        # the verdict's misfit is robust: one bad held-out point cannot decide it alone
+        chi = {m: lik.robust_reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
+        chi_plain = {m: lik.reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
         if chi[top] <= level:
             verdict = "no_missing_effect" if top == "none" else "missing_effect"
         else:
@@ -254,7 +264,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
             typ = screen[name]["y"] if screen[name]["start"] == "calibrated" else None
-            detect[name] = namer.detectability(name, y_tr, typ, priors)
+            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors)
         # 4) augment
         final = models[top]
         y_aug = y_cal.copy()
@@ -285,7 +295,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                  "after": ramp_runs[top] if verdict == "missing_effect" else ramp_runs["none"]}, campaign.ramps)
             problems += failed
         sims = runner.count
-    ranking = _ranking(cands, models, screen, post, chi, failures, held, meas, log_z)
+    ranking = _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfitted)
     gap_cal = _rms(_resid(np.abs(y_cal), meas)[held])
     res = {"before": _resid(np.abs(y0), meas), "calibrated": _resid(np.abs(y_cal), meas),
            "after": _resid(np.abs(y_aug), meas)}
@@ -308,6 +318,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         detectability={**dict.fromkeys(NAMES), **detect}, recommended_points=recs,
         outliers=[ids[i] for i, f in zip(rows_all, flags) if f],
         likelihood={"reduced_chi2_held_out": chi[top], "reduced_chi2_held_out_calibrated": chi["none"],
+                    "reduced_chi2_held_out_plain": chi_plain[top],
                     "reduced_chi2_train": lik.reduced_chi2(final["y"], train, final["nuisance"]),
                     "noise_level": level, "cells": int(len(pts) * len(drive.ORDERS)), "model": top,
                     "point_reduced_chi2": {ids[i]: float(c) / (2 * len(drive.ORDERS)) for i, c in
@@ -345,8 +356,9 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
         xk[k] += h
         cols_x.append(lik_r.column(ramps_lik.run_ramps(runner, calibrated_system(system, xk), points), runs["none"], h))
     ll, chi = {}, {}
-    cov_none = selection.posterior_covariance(jac, namer.prec_cal)
-    ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], np.column_stack(cols_x), cov_none)
+    cov_none = models["none"]["cov"]  # the same kind of covariance as the effect models'
+    pad = [np.zeros(lik_r.residuals)] * (cov_none.shape[0] - len(cols_x))  # the channels: not on the ramps
+    ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], np.column_stack([*cols_x, *pad]), cov_none)
     scales = {"none": lik_r.scale}
     for label, fit in models.items():
         if label == "none":
@@ -354,10 +366,10 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
         runs[label] = ramps_lik.run_ramps(runner, fit["system"], points)
         cols = list(cols_x)
         for name in fit["effects"]:
-            m = _magnitude(fit["system"], name)
-            moved = with_effect(fit["system"], name, {info(name).magnitude: m * math.exp(naming.FD_STEP)})
-            cols.append(lik_r.column(ramps_lik.run_ramps(runner, moved, points), runs[label], naming.FD_STEP))
-        cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes: not carried over
+            m_fd, step = naming.fd_magnitude(name, _magnitude(fit["system"], name))
+            moved = with_effect(fit["system"], name, {info(name).magnitude: m_fd})
+            cols.append(lik_r.column(ramps_lik.run_ramps(runner, moved, points), runs[label], step))
+        cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes, channels: not on the ramps
         ll[label], chi[label], _, _ = lik_r.predictive(runs[label], np.column_stack(cols), fit["cov"])
         scales[label] = lik_r.scale
     lik_r.scales, lik_r.cols_x = scales, cols_x
@@ -379,6 +391,8 @@ def _size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, cols_x, points)
     e = info(name)
     n_cal = len(CALIBRATION)
     u0 = math.log(fit["m"])
+    lo = math.log(naming.clip_magnitude(name, math.exp(u0 - RAMP_SEARCH)))
+    hi = math.log(naming.clip_magnitude(name, math.exp(u0 + RAMP_SEARCH)))
     var0 = max(float(fit["cov"][n_cal, n_cal]), 1e-12)
     cov_x = fit["cov"][:n_cal, :n_cal]
     seen = {}
@@ -391,13 +405,14 @@ def _size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, cols_x, points)
         return seen[u]
 
     with np.errstate(invalid="ignore", over="ignore"):
-        res = minimize_scalar(objective, bounds=(u0 - RAMP_SEARCH, u0 + RAMP_SEARCH), method="bounded",
+        res = minimize_scalar(objective, bounds=(lo, hi), method="bounded",
                               options={"xatol": 0.02, "maxiter": 10})
     u = float(res.x)
     if not math.isfinite(objective(u)) or abs(u - u0) < RAMP_UPDATE_MIN:
         return False
     d = 0.05
-    curv = (objective(u + d) - 2.0 * objective(u) + objective(u - d)) / d ** 2
+    uc = min(max(u, lo + d), hi - d)  # the curvature is read inside the range
+    curv = (objective(uc + d) - 2.0 * objective(uc) + objective(uc - d)) / d ** 2 if hi - lo > 2 * d else 0.0
     moved = with_effect(fit["system"], name, {e.magnitude: math.exp(u)})
     y = drive.coefficients_of(runner, moved, pts)
     if not np.all(np.isfinite(y)):
@@ -406,7 +421,6 @@ def _size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, cols_x, points)
     fit["nuisance"] = lik.profile(fit["y"], train)[1]
     fit["cov"] = fit["cov"].copy()
     fit["cov"][n_cal, n_cal] = 1.0 / curv if curv > 0 else var0
-    fit["sized_by_ramps"] = True
     return True
 
 
@@ -431,7 +445,7 @@ def _effects_of(label, fit) -> list:
     return out
 
 
-def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z) -> list:
+def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfitted) -> list:
     """One entry per candidate (and pair tried), most probable first."""
     rows = []
     for name in [*cands, *[m for m in models if "+" in m]]:
@@ -439,7 +453,8 @@ def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z) -> l
         entry = {"effect": name, "parameters": {}, "posterior": post.get(name, 0.0), "log_evidence": log_z.get(name),
                  "gap_held_out_nm": None, "reduced_chi2_held_out": chi.get(name), "train_fit_nm": None,
                  "screen_rel_log_evidence": screen.get(name, {}).get("rel_log_evidence"),
-                 "fitted_from": screen.get(name, {}).get("start"), "excluded": None}
+                 "fitted_from": (fit or {}).get("start", screen.get(name, {}).get("start")),
+                 "excluded": unfitted.get(name)}
         fails = dict(failures.get(name, {}))
         if fit is not None:
             entry["parameters"] = {p: v for eff in _effects_of(name, fit) for p, v in eff["parameters"].items()}
@@ -484,4 +499,4 @@ def _recommend(runner, models, post, detect, cands, pts, lik, campaign) -> list:
 __all__ = ["CALIBRATION", "INSUFFICIENT", "MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE",
            "Diagnosis", "diagnose", "locate", "calibrated_system", "shortfall", "speeds_of", "noise_level",
            "CAL_BOUND", "CAL_SCAN", "CAL_STEP_FRACTIONS", "COARSE_SEGMENTS", "PRIOR_LOG_SD", "REFINE_EVALUATIONS",
-           "_cal_cost", "_effect_grid", "_joint_screen", "_lstsq_bounded", "_resid", "with_effect"]
+           "_effect_grid", "_lstsq_bounded", "_resid", "with_effect"]

@@ -60,36 +60,6 @@ def diagnosis_system(system):
     return dataclasses.replace(system, solver=dataclasses.replace(system.solver, time_step=dt))
 
 
-def measured_orders(point) -> np.ndarray:
-    """Output order amplitudes [N m] of a measured torsional point (whole record), tracked on
-    its measured input speed (:mod:`dampersim.discrepancy.tracking`)."""
-    return tracking.point_orders(point, point.output_torque, ORDERS)
-
-
-def split_half_spread(point) -> np.ndarray:
-    """Repeatability [N m] of one record's output order amplitudes, from its two halves.
-
-    The model is driven with the measured input, so only what the input does not
-    explain counts: for an order the input carries (at least 1 % of its largest order),
-    the spread is that of the half-record magnification ratios, scaled by the whole
-    record's input amplitude, 0.5 |MR_1 - MR_2| A_in. For orders the damper generates
-    itself (friction harmonics) it is half the difference of the output amplitudes.
-    Comparing raw output amplitudes instead would count the engine's cycle-to-cycle
-    amplitude modulation as noise, which the driven model reproduces.
-    """
-    n = len(point.output_torque) // 2
-    halves = []
-    for sl in (slice(0, n), slice(n, 2 * n)):
-        halves.append((tracking.point_orders(point, point.input_torque, ORDERS, sl),
-                       tracking.point_orders(point, point.output_torque, ORDERS, sl)))
-    (i1, o1), (i2, o2) = halves
-    a_in = tracking.point_orders(point, point.input_torque, ORDERS, slice(0, 2 * n))
-    driven = a_in >= 0.01 * max(float(a_in.max()), 1e-12)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mr_spread = 0.5 * np.abs(o1 / i1 - o2 / i2) * a_in
-    return np.where(driven & np.isfinite(mr_spread), mr_spread, 0.5 * np.abs(o1 - o2))
-
-
 def simulate_point(system, point) -> dict:
     """Simulate one measured point with ``system``.
 
@@ -157,24 +127,10 @@ class Runner:
         return list(self._pool.map(fn, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
 
 
-def orders_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
-    """Output order amplitudes [N m] of ``system`` (at :func:`diagnosis_system`'s step)
-    driven by each torsional point, one row each. A failed run gives a row of NaN, never
-    numbers; its message goes into ``errors[row]`` when a dict is given."""
-    sysd = diagnosis_system(system)
-    out = runner.map([(sysd, p) for p in points])
-    rows = np.full((len(out), len(ORDERS)), np.nan)
-    for i, r in enumerate(out):
-        if "orders" in r:
-            rows[i] = r["orders"]
-        elif errors is not None:
-            errors[i] = r.get("error", "no result")
-    return rows
-
-
 def coefficients_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
     """Complex output order coefficients [N m] of ``system`` driven by each torsional point
-    (see :func:`orders_of`; a failed run gives a row of complex NaN)."""
+    (at :func:`diagnosis_system`'s step); a failed run gives a row of complex NaN, never
+    numbers, and its message goes into ``errors[row]`` when a dict is given."""
     sysd = diagnosis_system(system)
     out = runner.map([(sysd, p) for p in points])
     rows = np.full((len(out), len(ORDERS)), np.nan + 1j * np.nan)
@@ -208,6 +164,6 @@ def windup_error_deg(sim_windup, point) -> float:
     return float(math.degrees(np.sqrt(np.mean((a - b) ** 2))))
 
 
-__all__ = ["ORDERS", "RecordedRamp", "diagnosis_system", "measured_orders", "split_half_spread", "simulate_point",
-           "run_task", "Runner", "orders_of", "coefficients_of", "run_problem", "failed_text",
+__all__ = ["ORDERS", "RecordedRamp", "diagnosis_system", "simulate_point",
+           "run_task", "Runner", "coefficients_of", "run_problem", "failed_text",
            "windup_error_deg"]

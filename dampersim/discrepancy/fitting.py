@@ -1,6 +1,7 @@
-"""Calibration and effect-fit arithmetic of the diagnosis: the calibrated parameters, the
-regularised Gauss-Newton step and the linearised joint screen (all on standardised
-residuals, see :mod:`dampersim.discrepancy.likelihood`)."""
+"""Calibration arithmetic of the diagnosis: the calibration factors and their prior, the
+calibrated and coarse parameter sets, the regularised Gauss-Newton step (on standardised
+residuals, see :mod:`dampersim.discrepancy.likelihood`) and the magnitude grid of an
+effect fit."""
 
 from __future__ import annotations
 
@@ -92,34 +93,6 @@ def _lstsq_bounded(J, r, x0):
     b = J.T @ r - x0 / PRIOR_LOG_SD ** 2
     dx = np.linalg.solve(a, b)
     return np.clip(x0 + dx, -CAL_BOUND, CAL_BOUND) - x0
-
-
-def _cal_cost(resid_w, x) -> float:
-    """The regularised objective of :func:`_lstsq_bounded` (weighted residuals resid_w);
-    infinite when a residual is not finite (a failed run is never a good fit)."""
-    resid_w = np.asarray(resid_w, dtype=float)
-    if not np.all(np.isfinite(resid_w)):
-        return math.inf
-    return float(np.sum(resid_w * resid_w) + np.sum(np.asarray(x) ** 2) / PRIOR_LOG_SD ** 2)
-
-
-def _joint_screen(jac_w, d_w, r_w, x0):
-    """Linearised joint fit of a re-calibration dx and an effect scale s (unpenalised):
-    minimise |r_w - jac_w dx - d_w s|^2 + |x0 + dx|^2 / PRIOR_LOG_SD^2, all weighted.
-
-    The prior acts on the total calibration x0 + dx, so an effect may take back drift
-    that the calibration used to imitate it (a short-spring third stage first comes back
-    as a 60 % stiffer inner set). Returns (cost, s, dx); d_w None fits dx alone."""
-    n = jac_w.shape[1]
-    a = jac_w if d_w is None else np.column_stack([jac_w, d_w])
-    reg = np.zeros(a.shape[1])
-    reg[:n] = 1.0 / PRIOR_LOG_SD ** 2
-    b = a.T @ r_w
-    b[:n] -= x0 / PRIOR_LOG_SD ** 2
-    sol = np.linalg.lstsq(a.T @ a + np.diag(reg), b, rcond=None)[0]
-    dx = sol[:n]
-    s = float(sol[n]) if d_w is not None else 0.0
-    return _cal_cost(r_w - a @ sol, x0 + dx), s, dx
 
 
 __all__ = ["CALIBRATION", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS", "CAL_SCAN", "REFINE_EVALUATIONS",

@@ -13,8 +13,8 @@ s / sqrt(2)):
 * **repeatability** from the record's two halves: for orders the input carries, half the
   difference of the halves' complex ratios output/input times the whole record's input
   coefficient; for orders the damper generates, half the difference of the halves' output
-  coefficients, the second half turned to the first's phase reference by the dominant input
-  order. Half the difference of two half-record estimates has the variance of the whole
+  coefficients (both halves read on the whole record's angle, so their phases share one
+  reference). Half the difference of two half-record estimates has the variance of the whole
   record's estimate. One record gives one such sample per cell, so the variance used is the
   mean of that sample's square and the per-order median of the squares over the campaign's
   points divided by ln 2 (the median of an exponential variable is ln 2 of its mean): a
@@ -40,13 +40,16 @@ import math
 
 import numpy as np
 
+from dampersim.analysis.ordertrack import track_orders
 from dampersim.discrepancy import tracking
 
 #: prior standard deviation of the relative output/input channel gain (log): the torque
-#: transducers' calibration tolerance and the DAQ's gain errors (about 1 % each)
+#: transducers' calibration tolerance and the DAQ's gain errors (about 1 % each) with room
+#: for a transducer off its calibration by a few per cent
 GAIN_PRIOR_SD = 0.03
 #: prior standard deviation of the output channel's delay against the input [s]: a DAQ's
-#: channel skew and transducer phase lag stay well below one sample at 10-20 kHz
+#: channel skew (up to 0.2 ms in the synthetic DAQ) and transducer phase lag, with room for
+#: a filter group delay of a few samples at 10 kHz
 DELAY_PRIOR_SD = 5e-4
 #: smallest cell uncertainty, as a share of the campaign's largest output order amplitude
 SIGMA_FLOOR_SHARE = 1e-3
@@ -68,27 +71,28 @@ def measured_coefficients(point, orders) -> np.ndarray:
 
 def split_half_sigma(point, orders) -> np.ndarray:
     """Complex standard deviation [N m] of each output order coefficient from the record's
-    two halves (see the module docstring)."""
+    two halves (see the module docstring). Both halves are read on the whole record's
+    tracked angle, so their phases share one reference and need no turning."""
     n = len(point.output_torque) // 2
+    halves = [slice(0, n), slice(n, 2 * n)]
     if getattr(point, tracking.SPEED_CHANNEL, None) is None:
-        halves = [(tracking.point_orders(point, point.input_torque, orders, sl).astype(complex),
-                   tracking.point_orders(point, point.output_torque, orders, sl).astype(complex))
-                  for sl in (slice(0, n), slice(n, 2 * n))]
+        (i1, o1), (i2, o2) = [(tracking.point_orders(point, point.input_torque, orders, sl).astype(complex),
+                               tracking.point_orders(point, point.output_torque, orders, sl).astype(complex))
+                              for sl in halves]
         a_in = tracking.point_orders(point, point.input_torque, orders, slice(0, 2 * n)).astype(complex)
     else:
-        halves = [(tracking.tracked(point, point.input_torque, orders, sl).complex,
-                   tracking.tracked(point, point.output_torque, orders, sl).complex)
-                  for sl in (slice(0, n), slice(n, 2 * n))]
-        a_in = tracking.tracked(point, point.input_torque, orders, slice(0, 2 * n)).complex
-    (i1, o1), (i2, o2) = halves
-    k = np.asarray(orders, dtype=float)
+        th = tracking.point_angle(point, orders)
+
+        def read(signal, sl):
+            return track_orders(np.asarray(signal)[sl], point.time[sl], th[sl], orders,
+                                channel=tracking.SPEED_CHANNEL).complex
+
+        (i1, o1), (i2, o2) = [(read(point.input_torque, sl), read(point.output_torque, sl)) for sl in halves]
+        a_in = read(point.input_torque, slice(0, 2 * n))
     driven = np.abs(a_in) >= 0.01 * max(float(np.abs(a_in).max()), 1e-12)
-    j = int(np.argmax(np.abs(a_in)))
-    turn = np.angle(i1[j]) - np.angle(i2[j])  # second half's phase reference onto the first's
-    o2_aligned = o2 * np.exp(1j * (k / k[j]) * turn)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = 0.5 * np.abs(o1 / i1 - o2 / i2) * np.abs(a_in)
-    return np.where(driven & np.isfinite(ratio), ratio, 0.5 * np.abs(o1 - o2_aligned))
+    return np.where(driven & np.isfinite(ratio), ratio, 0.5 * np.abs(o1 - o2))
 
 
 def cell_sigma(repeat, model_change, meas) -> np.ndarray:
@@ -228,6 +232,15 @@ class Likelihood:
         """Flags of the points the robust loss down-weights under model coefficients y."""
         _, _, big = robust_weights(self.point_chi2(y, rows, nuisance), 2 * len(self.orders))
         return big
+
+    def robust_reduced_chi2(self, y, rows, nuisance=None) -> float:
+        """The robust loss (no nuisance prior) per real residual of y at rows: one bad point
+        cannot decide a verdict on its own."""
+        y = np.asarray(y, dtype=complex)
+        if not len(rows) or not np.all(np.isfinite(y)):
+            return math.nan
+        _, loss, _ = robust_weights(self.point_chi2(y, rows, nuisance), 2 * len(self.orders))
+        return float(np.sum(loss) / (2 * len(rows) * len(self.orders)))
 
     def reduced_chi2(self, y, rows, nuisance=None) -> float:
         """Plain chi^2 per real residual of y at rows (given or current nuisance, no robust

@@ -19,6 +19,7 @@ from dampersim.discrepancy import drive, selection
 from dampersim.discrepancy.effects import info, parameters_of, with_effect
 from dampersim.discrepancy.fitting import PRIOR_LOG_SD, REFINE_EVALUATIONS, _effect_grid, _lstsq_bounded, \
     calibrated_system
+from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, GAIN_PRIOR_SD
 
 #: log step of the finite differences for an effect's magnitude
 FD_STEP = 0.1
@@ -70,23 +71,26 @@ class Namer:
     # --- screen -----------------------------------------------------------------------------
     def screen(self, name):
         """Linearised joint fit of the effect at its typical magnitude with a re-calibration,
-        from each start: {start, scale, log_evidence relative to "none" from the same start,
-        cost}; the start with the higher relative evidence is kept."""
+        from each start (scale at least MIN_SCREEN_SCALE: an effect cannot act backwards).
+        Keeps the start whose joint model has the higher evidence: {start, scale,
+        rel_log_evidence (against the better of the starts' "none" evidences), cost, y}."""
         e = info(name)
-        best = None
+        best, z_none = None, -math.inf
         for start, (s0, x0, y_s) in self.starts.items():
             ye, failed = self.runs(with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), name)
+            with self.lik.using(self.lik.profile(y_s, self.train)[1]):  # this start's own nuisance
+                r = self.lik.mvec(self.train) - self.lik.vec(y_s, self.train)
+                d = None if failed else self.w(ye - y_s)
+            z_none = max(z_none, selection.linear_screen_evidence(r, self.jac, None, x0, PRIOR_LOG_SD)[0])
             if failed:
-                cand = {"start": start, "scale": 0.0, "rel_log_evidence": -math.inf, "cost": math.inf, "y": None}
+                cand = {"start": start, "scale": 0.0, "z": -math.inf, "cost": math.inf, "y": None}
             else:
-                with self.lik.using(self.lik.profile(y_s, self.train)[1]):  # this start's own nuisance
-                    r = self.lik.mvec(self.train) - self.lik.vec(y_s, self.train)
-                    d = self.w(ye - y_s)
-                z0 = selection.linear_screen_evidence(r, self.jac, None, x0, PRIOR_LOG_SD)[0]
-                z, s, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD)
-                cand = {"start": start, "scale": s, "rel_log_evidence": z - z0, "cost": c, "y": ye}
-            if best is None or cand["rel_log_evidence"] > best["rel_log_evidence"]:
+                z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
+                                                               min_scale=MIN_SCREEN_SCALE)
+                cand = {"start": start, "scale": sc, "z": z, "cost": c, "y": ye}
+            if best is None or cand["z"] > best["z"]:
                 best = cand
+        best["rel_log_evidence"] = best.pop("z") - z_none
         return best
 
     # --- fits --------------------------------------------------------------------------------
@@ -142,6 +146,7 @@ class Namer:
             return None
         base = s0 if not isinstance(start, str) else None
         options = [x_fit, x0, np.zeros_like(x0)] if base is None else [x0]
+        options = [xo for i, xo in enumerate(options) if not any(np.array_equal(xo, o) for o in options[:i])]
         best = None
         for xo in options:
             sysx = _with_factors(self.starts, base, xo)
@@ -149,11 +154,13 @@ class Namer:
             c = math.inf if failed else self.cost(ys, xo, self._magnitude_prior(name, m) + extra_prior)
             if best is None or c < best["cost"]:
                 best = {"cost": c, "m": float(m), "x": xo, "y": ys, "base": base,
+                        "start": start if isinstance(start, str) else "pair",
                         "system": with_effect(sysx, name, {e.magnitude: m}), "shapes": {}}
         if not math.isfinite(best["cost"]):
             return None
-        yd, failed = self.runs(with_effect(best["system"], name, {e.magnitude: m * math.exp(FD_STEP)}), label)
-        best["column"] = np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - best["y"]) / FD_STEP)
+        moved, step = fd_magnitude(name, m)
+        yd, failed = self.runs(with_effect(best["system"], name, {e.magnitude: moved}), label)
+        best["column"] = np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - best["y"]) / step)
         return best
 
     def fit_shapes(self, name, fit):
@@ -184,7 +191,7 @@ class Namer:
             r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
         step = np.linalg.solve(jac.T @ jac + np.diag(prec), jac.T @ r + prec * centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
-        m = fit["m"] * math.exp(float(step[n]))
+        m = clip_magnitude(name, fit["m"] * math.exp(float(step[n])))
         x = np.clip(fit["x"] + step[:n], -math.log(2.0), math.log(2.0))
         e = info(name)
         sysn = with_effect(_with_factors(self.starts, None, x), name, {**new, e.magnitude: m})
@@ -196,19 +203,30 @@ class Namer:
             fit.update({"cost": c, "m": m, "x": x, "y": yn, "system": sysn, "shapes": new})
         return fit
 
+    def _nuisance(self, y, nuisance):
+        """The channels' gain and delay columns (standardised) at model coefficients y and
+        their prior precisions: fitted with every model, they belong to its evidence and its
+        covariance (a delay resembles a transducer's lag, a gain a stiffness)."""
+        with self.lik.using(nuisance):
+            cols = self.lik.nuisance_jacobian(y, self.train)
+        return cols, np.array([1.0 / GAIN_PRIOR_SD ** 2, 1.0 / DELAY_PRIOR_SD ** 2])
+
     def evidence(self, fit, names, bias=None) -> tuple:
-        """(log evidence, covariance) of a fitted effect model; ``names``: its effects (the fit
-        carries one magnitude column per effect in ``columns``).
+        """(log evidence, covariance) of a fitted model; ``names``: its effects (the fit
+        carries one magnitude column per effect, then its shape columns, in ``columns``;
+        "none" has none). The columns are ordered calibration factors, magnitudes, shapes,
+        channel gain and delay.
 
         The covariance is the Laplace posterior covariance plus, with ``bias`` (the
         standardised change of the training coefficients under the discretisation check),
         the square of the parameter shift that change would cause if it were all
         systematic: the model's own discretisation error moves a fitted magnitude without
         adding scatter, and an interval from the scatter alone would not cover it."""
-        cols = fit["columns"]
-        jac = np.column_stack([self.jac, *cols])
+        cols = fit.get("columns", [])
+        nu_cols, nu_prec = self._nuisance(fit["y"], fit["nuisance"])
+        jac = np.column_stack([self.jac, *cols, nu_cols])
         prec = np.concatenate([self.prec_cal, np.full(len(names), 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2),
-                               np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
+                               np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2), nu_prec])
         cov = selection.posterior_covariance(jac, prec)
         if bias is not None:
             shift = cov @ (jac.T @ bias)
@@ -216,15 +234,19 @@ class Namer:
         return selection.log_evidence(fit["cost"], jac, prec), cov
 
     # --- detectability --------------------------------------------------------------------
-    def detectability(self, name, y_cal, y_typ, priors) -> float | None:
+    def detectability(self, name, y_cal, nuisance, y_typ, priors) -> float | None:
         """The magnitude at the detection threshold of effect ``name`` for this campaign:
-        where the chi^2 improvement it would bring after the calibration has absorbed what it
-        can (its signature projected off the calibration directions under their prior)
-        reaches what a posterior of DETECTION_POSTERIOR against "none" needs."""
+        where the chi^2 improvement it would bring, after the calibration and the channels'
+        gain and delay have absorbed what they can (its signature projected off those
+        directions under their priors), minus its magnitude prior's cost, reaches what a
+        posterior of DETECTION_POSTERIOR against "none" needs
+        (:func:`~dampersim.discrepancy.selection.detection_chi2`)."""
         e = info(name)
         meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
         cal = self.starts["calibrated"][0]
-        a = self.jac.T @ self.jac + np.diag(self.prec_cal)
+        nu_cols, nu_prec = self._nuisance(y_cal, nuisance)
+        absorb = np.column_stack([self.jac, nu_cols])
+        a = absorb.T @ absorb + np.diag(np.concatenate([self.prec_cal, nu_prec]))
         mags, gains = [], []
         for m in e.magnitudes:
             if m == e.magnitudes[1] and y_typ is not None:
@@ -233,18 +255,33 @@ class Namer:
                 y, failed = self.runs(with_effect(cal, name, {e.magnitude: m}), name)
                 if failed:
                     continue
-            d = self.w(y - y_cal)
-            proj = self.jac.T @ d
+            with self.lik.using(nuisance):
+                d = self.w(y - y_cal)
+            proj = absorb.T @ d
             mags.append(m)
-            gains.append(float(d @ d - proj @ np.linalg.solve(a, proj)))
+            gains.append(float(d @ d - proj @ np.linalg.solve(a, proj)) - self._magnitude_prior(name, m))
         if len(mags) < 2:
             return None
-        base = 2.0 * math.log(selection.DETECTION_POSTERIOR / (1.0 - selection.DETECTION_POSTERIOR)
-                              * priors["none"] / priors[name])
-        needed = base
-        for _ in range(20):  # needed = base + ln(1 + needed * MAG_SD^2): the Occam penalty at the threshold
-            needed = base + math.log(1.0 + needed * selection.MAGNITUDE_PRIOR_SD ** 2)
+        needed = selection.detection_chi2(priors[name], priors["none"])
         return selection.threshold_magnitude(mags, gains, needed, e.grows, (meta["min"], meta["max"]))
+
+
+def clip_magnitude(name: str, m: float) -> float:
+    """Magnitude ``m`` of effect ``name`` kept inside its parameter's accepted range (an
+    open lower bound of 0 kept strictly positive)."""
+    e = info(name)
+    meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
+    return _clip(m, meta) if meta["min"] is None or meta["min"] > 0 else max(_clip(m, meta), 1e-12)
+
+
+def fd_magnitude(name: str, m: float) -> tuple:
+    """(moved magnitude, log step) for a finite difference of effect ``name``'s magnitude at
+    ``m``: FD_STEP forwards, backwards where forwards would leave the accepted range."""
+    up = clip_magnitude(name, m * math.exp(FD_STEP))
+    if up > m * math.exp(0.5 * FD_STEP):
+        return up, math.log(up / m)
+    down = clip_magnitude(name, m * math.exp(-FD_STEP))
+    return down, math.log(down / m)
 
 
 def _with_factors(starts, base, x):
@@ -262,4 +299,4 @@ def _clip(v, meta) -> float:
     return float(v)
 
 
-__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "Namer"]
+__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "FD_STEP", "Namer", "clip_magnitude", "fd_magnitude"]

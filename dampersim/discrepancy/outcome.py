@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dampersim.discrepancy.effects import NAMES
 from dampersim.discrepancy.fitting import _rms
 
 #: fewest valid torsional test points a diagnosis accepts (every third is held out)
@@ -121,10 +122,13 @@ def shortfall(points, ramps: int = 0, left_out=()) -> tuple:
 def _not_diagnosed(system, missing, message, problems, simulations, t0) -> Diagnosis:
     """The Diagnosis of a campaign that cannot be diagnosed: every field present, no numbers."""
     nan = float("nan")
+    # every contract key is present: no model was compared, so "none" keeps its probability 1
+    # (nothing was found) and no threshold could be estimated
     return Diagnosis(verdict=INSUFFICIENT, effect=None, effect_parameters={}, ranking=[], noise_floor_nm=nan,
                      gap_before_nm=nan, gap_calibrated_nm=nan, gap_after_nm=nan, held_out_points=[],
                      problems=problems, simulations=simulations, wall_time_s=time.perf_counter() - t0, system=system,
-                     message=message, missing=list(missing))
+                     message=message, missing=list(missing), posterior={"none": 1.0, **dict.fromkeys(NAMES, 0.0)},
+                     detectability=dict.fromkeys(NAMES))
 
 
 def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
@@ -132,7 +136,7 @@ def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
     the noise level ``level`` of reduced chi^2), with the points left out and the candidates
     not ranked because their model runs failed."""
     lk = diag.likelihood
-    top = max(diag.posterior, key=diag.posterior.get) if diag.posterior else "none"
+    top = lk.get("model", "none")  # the most probable of the models with a held-out run
     p = diag.posterior.get(top, 0.0)
     chi_cal, chi_top = lk.get("reduced_chi2_held_out_calibrated"), lk.get("reduced_chi2_held_out")
     gaps = f"held-out gap {diag.gap_calibrated_nm:.3g} N m calibrated"

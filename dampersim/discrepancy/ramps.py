@@ -149,6 +149,8 @@ class RampLikelihood:
         for what its fit leaves uncertain. Returns (log likelihood up to a constant common to
         all models, chi^2, parameter update cov J' S^-1 r, updated covariance) or
         (-inf, inf, None, None) when a run failed."""
+        if not self.residuals:  # no ramp whose calibrated run worked: the ramps say nothing
+            return 0.0, 0.0, None, None
         r = self.residual(windups)
         if r is None:
             return -math.inf, math.inf, None, None

@@ -98,7 +98,7 @@ def ranking_rows(doc: dict) -> list:
             "posterior": r.get("posterior"),
             "log_evidence": r.get("log_evidence"),
             "reduced_chi2_held_out": r.get("reduced_chi2_held_out"),
-            "named": r.get("effect") == doc.get("effect"),
+            "named": r.get("effect") == ((doc.get("likelihood") or {}).get("model") or doc.get("effect")),
         })
     return rows
 
@@ -143,7 +143,7 @@ def verdict_summary(doc: dict) -> dict:
     floor, cal, after = doc.get("noise_floor_nm"), doc.get("gap_calibrated_nm"), doc.get("gap_after_nm")
     lk = doc.get("likelihood") or {}
     post = doc.get("posterior") or {}
-    top = max(post, key=post.get) if post else None
+    top = lk.get("model") or (max(post, key=post.get) if post else None)  # the verdict's model
     level_chi = lk.get("noise_level")
 
     def chi(v):

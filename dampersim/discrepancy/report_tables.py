@@ -141,7 +141,11 @@ def posterior_rows(doc) -> list:
 
 
 def most_probable(doc):
-    """The key of the most probable model, or None."""
+    """The key of the most probable model (the verdict's: ``likelihood.model``, the most
+    probable of the models with a held-out run), or None."""
+    model = (doc.get("likelihood") or {}).get("model") if isinstance(doc.get("likelihood"), dict) else None
+    if isinstance(model, str):
+        return model
     rows = posterior_rows(doc)
     return rows[0]["model"] if rows and rows[0]["most_probable"] else None
 
@@ -222,6 +226,8 @@ def detectability_rows(doc) -> list:
     kg m^2" or "not detectable with this campaign")}."""
     det = _dict(doc.get("detectability")) if isinstance(doc, dict) else {}
     order = [n for n in NAMES if n in det] + sorted(str(n) for n in det if n not in NAMES)
+    # the candidates the diagnosis considered carry a log evidence; the others were not asked
+    evidence = _dict((_dict(doc.get("likelihood")) if isinstance(doc, dict) else {}).get("log_evidence"))
     rows = []
     for name in order:
         par = info(name).magnitude if name in NAMES else None
@@ -229,7 +235,9 @@ def detectability_rows(doc) -> list:
         value = _float(det.get(name))
         below = detects_below(name)
         bound = None if below is None else ("upper" if below else "lower")
-        if value is None:
+        if value is None and evidence and name not in evidence:
+            meaning = "not considered in this diagnosis"
+        elif value is None:
             meaning = "not detectable with this campaign"
         elif below is None:
             meaning = f"threshold {number_text(value, 3, unit)}"

@@ -88,33 +88,47 @@ def posterior(log_z: dict, priors: dict) -> dict:
     return {m: w.get(m, 0.0) / s for m in log_z}
 
 
-def linear_screen_evidence(r_w, jac_w, d_w, x0, prior_sd, mag_sd=MAGNITUDE_PRIOR_SD):
+def linear_screen_evidence(r_w, jac_w, d_w, x0, prior_sd, mag_sd=MAGNITUDE_PRIOR_SD, min_scale: float = 0.0):
     """Laplace evidence of the linearised joint fit r_w ~ jac_w dx + d_w s (exact for a linear
     model): calibration change dx under the prior on the total factors x0 + dx (spread
     prior_sd), effect scale s = magnitude / typical magnitude under N(1, mag_sd) (d_w None:
-    calibration only). Returns (log evidence, s, dx, cost)."""
+    calibration only). An effect cannot act backwards: when the best s is below
+    ``min_scale`` the scale is held there (its prior term paid, no Occam factor for it).
+    Returns (log evidence, s, dx, cost)."""
     n = jac_w.shape[1]
-    cols = jac_w if d_w is None else np.column_stack([jac_w, d_w])
-    prec = np.full(cols.shape[1], 1.0 / prior_sd ** 2)
-    centre = np.concatenate([-np.asarray(x0, dtype=float), [] if d_w is None else [1.0]])
-    if d_w is not None:
-        prec[n] = 1.0 / mag_sd ** 2
-    a = cols.T @ cols + np.diag(prec)
-    sol = np.linalg.solve(a, cols.T @ r_w + prec * centre)
-    res = r_w - cols @ sol
-    cost = float(res @ res + np.sum(prec * (sol - centre) ** 2))
-    sign, logdet = np.linalg.slogdet(a)
-    logz = -0.5 * cost + 0.5 * float(np.sum(np.log(prec))) - 0.5 * logdet
-    return logz, (float(sol[n]) if d_w is not None else 0.0), sol[:n], cost
+
+    def solve(cols, r, centre, prec):
+        a = cols.T @ cols + np.diag(prec)
+        sol = np.linalg.solve(a, cols.T @ r + prec * centre)
+        res = r - cols @ sol
+        cost = float(res @ res + np.sum(prec * (sol - centre) ** 2))
+        logz = -0.5 * cost + 0.5 * float(np.sum(np.log(prec))) - 0.5 * np.linalg.slogdet(a)[1]
+        return logz, sol, cost
+
+    prec_x = np.full(n, 1.0 / prior_sd ** 2)
+    if d_w is None:
+        logz, sol, cost = solve(jac_w, r_w, -np.asarray(x0, dtype=float), prec_x)
+        return logz, 0.0, sol, cost
+    cols = np.column_stack([jac_w, d_w])
+    prec = np.concatenate([prec_x, [1.0 / mag_sd ** 2]])
+    logz, sol, cost = solve(cols, r_w, np.concatenate([-np.asarray(x0, dtype=float), [1.0]]), prec)
+    if sol[n] >= min_scale:
+        return logz, float(sol[n]), sol[:n], cost
+    held = ((min_scale - 1.0) / mag_sd) ** 2
+    logz, sol, cost = solve(jac_w, r_w - d_w * min_scale, -np.asarray(x0, dtype=float), prec_x)
+    return logz - 0.5 * held, float(min_scale), sol, cost + held
 
 
-def detection_chi2(prior_single: float, prior_none: float, occam: float) -> float:
+def detection_chi2(prior_single: float, prior_none: float, mag_sd: float = MAGNITUDE_PRIOR_SD) -> float:
     """The chi^2 improvement an effect must bring for its posterior to reach
-    DETECTION_POSTERIOR against "none" (two-model comparison): 2 ln(odds needed x prior
-    ratio) plus twice the Occam penalty ``occam`` (ln of the evidence lost to the fitted
-    magnitude)."""
-    odds = DETECTION_POSTERIOR / (1.0 - DETECTION_POSTERIOR)
-    return 2.0 * (math.log(odds * prior_none / prior_single) + occam)
+    DETECTION_POSTERIOR against "none" (two models): 2 ln(odds x prior ratio) plus the
+    Occam penalty ln(1 + needed x mag_sd^2) of a fitted magnitude at that improvement
+    (solved by fixed-point iteration; it converges in a few steps)."""
+    base = 2.0 * math.log(DETECTION_POSTERIOR / (1.0 - DETECTION_POSTERIOR) * prior_none / prior_single)
+    needed = base
+    for _ in range(30):
+        needed = base + math.log(1.0 + needed * mag_sd ** 2)
+    return needed
 
 
 def threshold_magnitude(mags, chi2_gain, needed: float, grows: bool, bounds=(None, None)):
@@ -128,11 +142,8 @@ def threshold_magnitude(mags, chi2_gain, needed: float, grows: bool, bounds=(Non
     is detectable."""
     m = np.asarray(mags, dtype=float)
     g = np.maximum(np.asarray(chi2_gain, dtype=float), 1e-300)
-    order = np.argsort(m)
-    m, g = m[order], g[order]
-    strength = m if grows else 1.0 / m  # larger: stronger effect
-    o = np.argsort(strength)
-    s, g, m = strength[o], g[o], m[o]
+    o = np.argsort(m if grows else 1.0 / m)  # weakest effect first
+    g, m = g[o], m[o]
     lo_b, hi_b = bounds
     if g[-1] < needed:
         return None

@@ -13,7 +13,8 @@ import pytest
 from dampersim.cli import main
 from dampersim.discrepancy import drive
 from dampersim.discrepancy.campaign_write import write_campaign
-from dampersim.discrepancy.diagnose import INSUFFICIENT, _cal_cost, _resid, diagnose
+from dampersim.discrepancy.diagnose import INSUFFICIENT, _resid, diagnose
+from dampersim.discrepancy.likelihood import Likelihood
 from dampersim.jsonsafe import jsonable
 from tests.discrepancy import fake_rig as F
 
@@ -35,8 +36,10 @@ def run(monkeypatch, fail, **kw):
 def test_a_failed_run_stays_a_failure_in_the_residual_and_the_cost():
     # read as 0, a failed run would be a perfect match
     assert np.isnan(_resid(np.array([np.nan, 2.0]), np.array([1.0, 1.0]))[0])
-    assert _cal_cost(np.array([np.nan, 0.0]), np.zeros(2)) == float("inf")
-    assert _cal_cost(np.array([np.inf]), np.zeros(2)) == float("inf")
+    lik = Likelihood(np.ones((1, 2), complex), np.ones((1, 2)), [100.0], [1.0, 2.0])
+    assert lik.loss(np.array([[np.nan, 1.0]]), [0]) == float("inf")
+    assert lik.loss(np.array([[np.inf + 0j, 1.0]]), [0]) == float("inf")
+    assert lik.loss(np.ones((1, 2), complex), [0]) == 0.0
 
 
 def test_run_task_turns_exceptions_and_non_finite_results_into_errors(monkeypatch):
@@ -116,3 +119,17 @@ def test_cli_json_lists_the_failed_point_under_problems(monkeypatch, tmp_path, c
     assert "p4" not in doc["held_out_points"] and "p4 [model]" in captured.err
     assert all({"excluded", "failed_points"} <= set(r) for r in doc["ranking"])
     assert doc == jsonable(doc)  # strict JSON: no NaN or inf slipped through
+
+
+def test_a_held_out_point_where_the_calibrated_model_fails_is_left_out_of_the_verdict(monkeypatch):
+    # the calibration asks for a 17 % stiffer outer set (fake_rig); with it the model fails at
+    # held-out point p1: p1 leaves the verdict, which is judged on p4 alone, with numbers
+    def fail(s, p):
+        return "raise" if p.id == "p1" and s.outer.spring.stiffness > 1.1 * F.BASE.outer.spring.stiffness else None
+
+    d = run(monkeypatch, fail, candidates=["turbine_drag"])
+    assert d.verdict in ("missing_effect", "no_missing_effect", "unexplained")
+    assert d.held_out_points == ["p4"]
+    assert ("p1", "model") in [(q["point"], q["field"]) for q in d.problems]
+    assert np.isfinite(d.likelihood["reduced_chi2_held_out_calibrated"])
+    assert np.isfinite(d.likelihood["reduced_chi2_held_out"])

@@ -80,6 +80,10 @@ def test_the_diagnosis_document_carries_the_whole_contract(absorber, control):
         assert set(doc["detectability"]) == set(NAMES)
         assert doc["recommended_points"] == []  # recommend=False
         assert set(doc["outliers"]) <= set(POINTS)
+    for d in (absorber, control):
+        assert d.gap_before_nm > 0 and d.noise_floor_nm > 0
+        assert d.held_out_points and set(d.held_out_points) <= set(POINTS)
+        assert [r["effect"] for r in d.ranking if r["gap_held_out_nm"] is not None]  # fitted candidates
     # the absorber is detectable with this campaign, well below the strong magnitude hidden in it
     thr = absorber.detectability["pendulum_absorber"]
     assert thr is not None and thr < TRUE_INERTIA

@@ -1,4 +1,4 @@
-"""Campaign I/O with validation, synth and a small hidden-effect diagnosis end to end."""
+"""Campaign I/O with validation and synth (the diagnosis end to end: test_identification.py)."""
 
 import hashlib
 import json
@@ -10,7 +10,6 @@ import pytest
 
 from dampersim.cli import main
 from dampersim.discrepancy.campaign import read_campaign
-from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.synth import synthesize
 from dampersim.errors import InputError
 
@@ -43,28 +42,6 @@ def test_synth_keeps_the_truth_out_of_the_campaign(hidden):
     assert doc["effects"][0]["name"] == "pendulum_absorber"
     with pytest.raises(InputError):
         synthesize(out, points=POINTS[:1], truth=out / "t.json", record=0.6)
-
-
-@pytest.fixture(scope="module")
-def diagnosis(hidden):
-    out, _ = hidden
-    camp = read_campaign(out)
-    assert not camp.problems and len(camp.points) == len(POINTS)
-    return diagnose(camp, workers=1, candidates=["pendulum_absorber", "turbine_drag", "transducer_bandwidth"],
-                    calibration_iterations=1, shortlist=2)
-
-
-@pytest.mark.slow  # the diagnosis fixture takes about 40 s
-def test_diagnosis_runs_end_to_end(diagnosis):
-    d = diagnosis
-    assert d.verdict in ("missing_effect", "no_missing_effect", "unexplained")
-    assert d.gap_before_nm > 0 and d.noise_floor_nm > 0
-    assert d.gap_after_nm <= d.gap_calibrated_nm + 1e-12
-    assert d.held_out_points and set(d.held_out_points) <= set(POINTS)
-    assert [r["effect"] for r in d.ranking if r["gap_held_out_nm"] is not None]
-    doc = json.loads(json.dumps(d.to_json()))
-    assert set(doc) >= {"verdict", "effect", "effect_parameters", "ranking", "noise_floor_nm", "gap_before_nm",
-                        "gap_calibrated_nm", "gap_after_nm", "held_out_points"}
 
 
 def test_bad_campaign_reports_every_problem_and_keeps_valid_points(hidden, tmp_path):
