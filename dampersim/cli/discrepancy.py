@@ -64,6 +64,15 @@ def cmd_diagnose(args) -> int:
     from dampersim.discrepancy.diagnose import INSUFFICIENT, diagnose
     from dampersim.parameters import save_toml
 
+    cands = None
+    if args.candidates:
+        from dampersim.discrepancy.effects import NAMES
+
+        cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
+        unknown = [c for c in cands if c not in NAMES]
+        if unknown or not cands:
+            raise InputError(f"--candidates {args.candidates!r}: {', '.join(unknown) or 'no name'} is not an effect; "
+                             f"accepted is a comma-separated list of {', '.join(NAMES)}")
     camp = read_campaign(args.campaign)
     if camp.problems:
         print(camp.report_text(), file=sys.stderr)
@@ -77,7 +86,8 @@ def cmd_diagnose(args) -> int:
         if not args.json:
             print(f"[{100 * frac:5.1f} %] {text}", file=sys.stderr, flush=True)
 
-    diag = diagnose(camp, system, workers=args.workers, progress=progress)
+    diag = diagnose(camp, system, workers=args.workers, progress=progress, candidates=cands,
+                    recommend=not args.no_recommend)
     out = jsonable(diag.to_json())
     for q in diag.problems[len(camp.problems):]:  # the model runs that failed
         print(f"{q['point']} [{q['field']}]: {q['message']}", file=sys.stderr)
@@ -143,6 +153,9 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--report", help="write an HTML report")
     p.add_argument("--out-params", help="write the augmented parameter set (TOML)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: up to 2)")
+    p.add_argument("--candidates", help="comma-separated effects to consider (default: all of `effects`)")
+    p.add_argument("--no-recommend", action="store_true",
+                   help="skip the next-test design (its candidate points are simulated with each model in question)")
     p.set_defaults(func=cmd_diagnose)
 
 

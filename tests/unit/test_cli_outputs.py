@@ -147,8 +147,10 @@ def test_diagnose_report_and_out_params_create_parent_folders(fresh, capsys):
     points = "map_900_150,map_1200_250,map_1500_150"
     assert main(["synth", "--out", "campaign", "--points", points, "--record", "0.6", "--perturb", "0.03"]) == 0
     capsys.readouterr()
-    args = ["diagnose", "campaign", "--workers", "1", "--json",
-            "--report", "out/h/report.html", "--out-params", "out/i/augmented.toml"]
+    args = ["diagnose", "campaign", "--workers", "1", "--json", "--candidates", "turbine_drag,pendulum_absorber",
+            "--no-recommend", "--report", "out/h/report.html", "--out-params", "out/i/augmented.toml"]
+    assert main([*args[:2], "--candidates", "warp_drive"]) == 2  # refused before any work, with the accepted names
+    assert "accepted is a comma-separated list of clutch_slip" in capsys.readouterr().err
     assert main(args) == 0
     assert json.loads(capsys.readouterr().out)["verdict"]
     assert (fresh / "out" / "h" / "report.html").stat().st_size > 1000
