@@ -284,7 +284,11 @@ DIAGNOSIS_DESIGN_S = 0.6 + 1.0  # simulated length of one design run [s] (start-
 #: fitted model (shortlist and a pair) with its magnitude sensitivities (two for the pair), the
 #: sizing search of the most probable effect (10 + 2 for its curvature) and that model afterwards
 DIAGNOSIS_RAMP_SIZING = 10 + 2
-DIAGNOSIS_RAMP_RUNS = 3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1 + DIAGNOSIS_RAMP_SIZING + 1
+#: ... and the detectability of the effects that show in ramps (three, design.RAMP_PROTOCOLS) at
+#: three magnitudes each
+DIAGNOSIS_RAMP_DETECT = 3 * 3
+DIAGNOSIS_RAMP_RUNS = (3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1 + DIAGNOSIS_RAMP_SIZING + 1
+                       + DIAGNOSIS_RAMP_DETECT)
 
 
 def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:

@@ -261,10 +261,22 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             verdict = "unexplained"
         # detectability of every candidate (two more magnitudes each, from the calibrated start)
         detect = {}
+
+        def ramp_gain(name, m):
+            """The ramps' share of an effect's detectability: its windup signature at magnitude
+            m against the calibrated model's prediction (effects that show in ramps only)."""
+            if ramp_lik is None or name not in design.RAMP_PROTOCOLS:
+                return 0.0
+            w = ramps_lik.run_ramps(runner, with_effect(cal, name, {info(name).magnitude: m}), campaign.ramps)
+            cov = models["none"]["cov"]
+            pad = [np.zeros(ramp_lik.residuals)] * (cov.shape[0] - len(ramp_lik.cols_x))
+            return ramp_lik.signature_gain(w, ramp_runs["none"], np.column_stack([*ramp_lik.cols_x, *pad]), cov,
+                                           ramp_lik.scales["none"])
+
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
             typ = screen[name]["y"] if screen[name]["start"] == "calibrated" else None
-            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors)
+            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain)
         # 4) augment
         final = models[top]
         y_aug = y_cal.copy()

@@ -234,13 +234,14 @@ class Namer:
         return selection.log_evidence(fit["cost"], jac, prec), cov
 
     # --- detectability --------------------------------------------------------------------
-    def detectability(self, name, y_cal, nuisance, y_typ, priors) -> float | None:
+    def detectability(self, name, y_cal, nuisance, y_typ, priors, ramp_gain=None) -> float | None:
         """The magnitude at the detection threshold of effect ``name`` for this campaign:
         where the chi^2 improvement it would bring, after the calibration and the channels'
         gain and delay have absorbed what they can (its signature projected off those
         directions under their priors), minus its magnitude prior's cost, reaches what a
         posterior of DETECTION_POSTERIOR against "none" needs
-        (:func:`~dampersim.discrepancy.selection.detection_chi2`)."""
+        (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): the
+        chi^2 the ramps would add at magnitude m (None: torsional points only)."""
         e = info(name)
         meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
         cal = self.starts["calibrated"][0]
@@ -259,7 +260,8 @@ class Namer:
                 d = self.w(y - y_cal)
             proj = absorb.T @ d
             mags.append(m)
-            gains.append(float(d @ d - proj @ np.linalg.solve(a, proj)) - self._magnitude_prior(name, m))
+            ramps = ramp_gain(name, m) if ramp_gain is not None else 0.0
+            gains.append(float(d @ d - proj @ np.linalg.solve(a, proj)) + ramps - self._magnitude_prior(name, m))
         if len(mags) < 2:
             return None
         needed = selection.detection_chi2(priors[name], priors["none"])

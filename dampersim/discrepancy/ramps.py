@@ -141,6 +141,29 @@ class RampLikelihood:
             total += c
         return total, per
 
+    def _covariance(self, jac, cov, scale: float):
+        """diag((scale sigma)^2) + J C J' with the ramps' angle offsets appended to J and C."""
+        so2 = math.radians(OFFSET_PRIOR_DEG) ** 2
+        off = self.offset_columns()
+        j = np.column_stack([np.asarray(jac, dtype=float).reshape(self.residuals, -1), off])
+        n = j.shape[1] - off.shape[1]
+        c = np.zeros((j.shape[1], j.shape[1]))
+        c[:n, :n] = cov
+        c[n:, n:] = np.eye(off.shape[1]) * so2
+        sig2 = np.concatenate([self.sigma[p.id] ** 2 for p in self.points])
+        return np.diag(sig2 * scale ** 2) + j @ c @ j.T
+
+    def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float) -> float:
+        """The chi^2 an effect's ramp signature (windups minus the base model's) would add
+        against a model with parameter covariance ``cov`` through sensitivities ``jac`` and
+        uncertainty scale ``scale``: what the calibration and the offsets cannot absorb
+        (0 when a run failed or there are no samples)."""
+        a, b = self._model(windups), self._model(base)
+        if not self.residuals or a is None or b is None:
+            return 0.0
+        d = a - b
+        return float(d @ np.linalg.solve(self._covariance(jac, cov, scale), d))
+
     def predictive(self, windups: dict, jac, cov):
         """The ramps' log likelihood given a model fitted on the torsional points, with that
         fit's parameter uncertainty carried over (linearised): the samples' residual r is

@@ -64,3 +64,18 @@ def test_the_ramp_prediction_carries_the_fit_uncertainty_and_sizes_the_parameter
     assert ll_unsure > ll_sure + 10  # odds above 20 000 to 1
     assert math.exp(upd[0]) == pytest.approx(1.3, rel=0.05)  # linearised in log: exp(0.262) against 1.3
     assert cov[0, 0] < 0.01
+
+
+def test_a_ramp_signature_counts_only_what_offsets_and_parameters_cannot_absorb():
+    p = F.ramp("r0")
+    base = {p.id: p.windup}
+    lik = RampLikelihood([p], base, base)
+    col = lik.column({p.id: p.windup * math.exp(0.01)}, base, 0.01)[:, None]  # a stiffness-like direction
+    cov = np.array([[1e-4]])
+    offset = {p.id: p.windup + np.radians(0.05)}
+    step = {p.id: p.windup + np.where(np.gradient(p.input_torque) > 0, 0.0, np.radians(0.2))}
+    scaled = {p.id: p.windup * 1.001}
+    assert lik.signature_gain(offset, base, col, cov, 1.0) < 1.0  # an angle zero: the offset nuisance takes it
+    assert lik.signature_gain(scaled, base, col, cov, 1.0) < 1.0  # inside the parameter's uncertainty
+    assert lik.signature_gain(step, base, col, cov, 1.0) > 100.0  # a free-play step is not absorbed
+    assert lik.signature_gain(step, base, col, cov, 10.0) < lik.signature_gain(step, base, col, cov, 1.0) / 50

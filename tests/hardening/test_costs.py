@@ -111,7 +111,9 @@ def test_diagnosis_counts_follow_the_workflow():
     # given, calibrated, coarse, six sensitivities, fits and pair with their magnitude sensitivities, the sized top
     # and the sizing search of the top effect (bounded search + curvature) with its replay
     assert costs.DIAGNOSIS_RAMP_SIZING == 10 + 2
-    assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1
+    # and the ramp-visible effects' detectability (three magnitudes each)
+    assert costs.DIAGNOSIS_RAMP_DETECT == len(design.RAMP_PROTOCOLS) * len(EFFECTS["clutch_slip"].magnitudes)
+    assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9
     # 12 points: 8 training, 4 held out (every third)
     assert costs.diagnosis_runs(12, 8) == (24 + 24 * 8 + 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
                                            + 15 * 8 + 4 + 3 * 8 * 8)
