@@ -27,7 +27,7 @@ from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIO
                                            GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, _effect_grid,
                                            _lstsq_bounded, _resid, _rms, calibrated_system, coarse_system)
 from dampersim.discrepancy.likelihood import Likelihood, cell_sigma, measured_coefficients, split_half_sigma
-from dampersim.discrepancy.naming import MIN_SCREEN_SCALE, Namer
+from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
                                            Diagnosis, _not_diagnosed, _verdict_message, locate, shortfall, speeds_of)
 from dampersim.discrepancy.tracking import point_orders
@@ -174,7 +174,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             report(0.40 + 0.15 * j / len(cands), f"name: signature screen of {name}")
             screen[name] = namer.screen(name)
         order = sorted(cands, key=lambda n: -screen[n]["rel_log_evidence"])
-        shortlisted = [n for n in order if screen[n]["scale"] > MIN_SCREEN_SCALE][:shortlist] or order[:1]
+        # the best by screen evidence are fitted (a scale held at its minimum can still fit
+        # better than "none": a slightly slipping clutch); the others keep the screen's evidence
+        shortlisted = [n for n in order if math.isfinite(screen[n]["rel_log_evidence"])][:shortlist] or order[:1]
         held_pts = [pts[i] for i in held]
         bias_w = lik.vec(np.nan_to_num(y_coarse[train] - y0[train]), train)  # the discretisation check, standardised
         models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
