@@ -141,8 +141,9 @@ class RampLikelihood:
             total += c
         return total, per
 
-    def _covariance(self, jac, cov, scale: float):
-        """diag((scale sigma)^2) + J C J' with the ramps' angle offsets appended to J and C."""
+    def _parts(self, jac, cov):
+        """(J, C, sample variances): the sensitivities with the ramps' angle offsets appended,
+        the parameter covariance with the offsets' prior, and sigma^2 of every sample."""
         so2 = math.radians(OFFSET_PRIOR_DEG) ** 2
         off = self.offset_columns()
         j = np.column_stack([np.asarray(jac, dtype=float).reshape(self.residuals, -1), off])
@@ -150,7 +151,11 @@ class RampLikelihood:
         c = np.zeros((j.shape[1], j.shape[1]))
         c[:n, :n] = cov
         c[n:, n:] = np.eye(off.shape[1]) * so2
-        sig2 = np.concatenate([self.sigma[p.id] ** 2 for p in self.points])
+        return j, c, np.concatenate([self.sigma[p.id] ** 2 for p in self.points])
+
+    def _covariance(self, jac, cov, scale: float):
+        """diag((scale sigma)^2) + J C J' (see :meth:`_parts`)."""
+        j, c, sig2 = self._parts(jac, cov)
         return np.diag(sig2 * scale ** 2) + j @ c @ j.T
 
     def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float) -> float:
@@ -177,14 +182,8 @@ class RampLikelihood:
         r = self.residual(windups)
         if r is None:
             return -math.inf, math.inf, None, None
-        so2 = math.radians(OFFSET_PRIOR_DEG) ** 2
-        off = self.offset_columns()
-        j = np.column_stack([np.asarray(jac, dtype=float).reshape(self.residuals, -1), off])
-        n = j.shape[1] - off.shape[1]
-        c = np.zeros((j.shape[1], j.shape[1]))
-        c[:n, :n] = cov
-        c[n:, n:] = np.eye(off.shape[1]) * so2
-        sig2 = np.concatenate([self.sigma[p.id] ** 2 for p in self.points])
+        j, c, sig2 = self._parts(jac, cov)
+        n = j.shape[1] - len(self.points)
         jcj = j @ c @ j.T
         best = None
         for scale in SCALES:  # the samples' uncertainty scale, fitted per model (at least 1)
