@@ -34,7 +34,8 @@ from tests.dashboard.test_callbacks import find
 
 EXAMPLE = "hidden-effect-example"
 TINY_POINTS = ["map_900_150", "map_1500_150", "map_2000_50"]  # the fewest points diagnose() accepts (3)
-TINY_OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibration_iterations": 1, "shortlist": 1}
+TINY_OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibration_iterations": 1, "shortlist": 1,
+                "recommend": False}  # the next-test design (75 runs) is tested in tests/discrepancy
 
 
 def as_json(component) -> str:

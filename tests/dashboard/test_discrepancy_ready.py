@@ -78,7 +78,7 @@ def test_too_few_points_are_refused_with_the_diagnosis_message(cache_dir, tmp_pa
 def test_a_diagnosis_of_insufficient_data_is_shown_with_its_message(monkeypatch):
     # failed model runs can leave too few points after the page's check: the verdict says so
     monkeypatch.setattr(drive, "simulate_point", F.fake_model(lambda s, p: "raise" if p.id != "p0" else None))
-    diag = diagnose(F.campaign([F.point(*p) for p in F.POINTS]), workers=1)
+    diag = diagnose(F.campaign([F.point(*p) for p in F.POINTS]), workers=1, recommend=False)
     doc = json.loads(json.dumps(diagnosis_document(diag)))  # plain JSON, as from the cache
     assert doc["verdict"] == "insufficient_data" and doc["missing"] == ["torsional_points"]
     cards, verdict, ranking, *figs, doc_text = D.render({"diagnosis": doc, "campaign": {"name": "fake"}, "summary": {}})

@@ -108,4 +108,13 @@ def fake_model(fail=None):
         out = dataclasses.replace(p, output_torque=signal(p.time, p.speed_rpm, p.mean_torque_nm, amps))
         c = measured_coefficients(out, drive.ORDERS)
         return {"orders": np.abs(c), "coefficients": c}
+    simulate_point.fake = True  # tells fake_design_task to stand in for the design's runs too
     return simulate_point
+
+
+def fake_design_task(args) -> dict:
+    """The stand-in's output amplitudes for a next-test design candidate (system, speed
+    [rad/s], mean torque [N m], orders text), as :func:`dampersim.discrepancy.design.design_task`
+    returns them."""
+    system, speed, torque, _text = args
+    return {"orders": amplitudes(system, speed * 30.0 / math.pi, torque)}

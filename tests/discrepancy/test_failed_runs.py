@@ -133,3 +133,13 @@ def test_a_held_out_point_where_the_calibrated_model_fails_is_left_out_of_the_ve
     assert ("p1", "model") in [(q["point"], q["field"]) for q in d.problems]
     assert np.isfinite(d.likelihood["reduced_chi2_held_out_calibrated"])
     assert np.isfinite(d.likelihood["reduced_chi2_held_out"])
+
+
+def test_the_next_points_separate_the_two_most_probable_models(monkeypatch):
+    # the stand-in's design runs (tests/discrepancy/conftest.py): turbine drag against none
+    d = run(monkeypatch, None, candidates=["turbine_drag"])
+    recs = d.recommended_points
+    assert recs and all(set(r) == {"kind", "speed_rpm", "mean_torque_nm", "orders", "protocol", "reason"} for r in recs)
+    first = recs[0]
+    assert first["kind"] == "torsional" and first["orders"].startswith("2:") and first["protocol"] is None
+    assert "separates the two most probable models" in first["reason"] and "turbine_drag" in first["reason"]
