@@ -6,7 +6,8 @@ channel gain errors and, for the absorber case, a random DAQ chain with skew, hu
 drift and anti-alias filtering). Nine mapping points of 0.8 s, three candidates, torsional
 points only: about a minute and a half per diagnosis on two cores. These tests are strict:
 a change that stops the method naming the absorber as the most probable model with its
-magnitude, or that makes it name an effect in a clean campaign, fails here. The full benchmark lives in bench/bench_discrepancy.py.
+magnitude, or that makes it name an effect in a clean campaign, fails here. The full
+benchmark lives in bench/bench_discrepancy.py.
 """
 
 import json
