@@ -156,7 +156,7 @@ def point_ids(n_points: int, n_ramps: int) -> list:
     return ids + ramps[:n_ramps]
 
 
-def run_case(case, n_points: int, record: float, n_ramps: int, workers: int) -> dict:
+def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, recommend: bool = True) -> dict:
     """Synthesise the case's campaign, diagnose it, return its JSON line."""
     ids = point_ids(n_points, n_ramps)
     spec = case["spec"]
@@ -167,7 +167,7 @@ def run_case(case, n_points: int, record: float, n_ramps: int, workers: int) -> 
                          noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
                          points=ids, record=record, workers=workers, daq=case["daq"])
         t0 = time.perf_counter()
-        diag = jsonable(diagnose(read_campaign(camp), workers=workers).to_json())
+        diag = jsonable(diagnose(read_campaign(camp), workers=workers, recommend=recommend).to_json())
         wall = time.perf_counter() - t0
     truth = dict(doc)
     truth.update({"description": spec["description"], "updates": spec["updates"], "level": case["level"]})
@@ -229,6 +229,8 @@ def main(argv=None):
     ap.add_argument("--ramps", type=int, default=None, help="hysteresis ramps per campaign (hard: 1, classic: 0)")
     ap.add_argument("--record", type=float, default=1.0, help="record length [s]")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-recommend", action="store_true",
+                    help="skip the next-test design (its runs do not change any figure of the summary)")
     a = ap.parse_args(argv)
     if a.summary:
         print(summary_table(summary(read_lines(a.summary))))
@@ -253,7 +255,7 @@ def main(argv=None):
     print(f"{len(todo)} cases to run ({len(cases) - len(todo)} skipped)", flush=True)
     for c in todo:
         try:
-            r = run_case(c, a.points, a.record, ramps, a.workers)
+            r = run_case(c, a.points, a.record, ramps, a.workers, not a.no_recommend)
         except Exception as exc:  # noqa: BLE001 - one failed case must not end the run
             r = {"id": c["id"], "kind": c["kind"], "error": f"{type(exc).__name__}: {exc}",
                  "traceback": traceback.format_exc(limit=5)}

@@ -226,6 +226,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     fit["m_first"] = f1["m"]
                     finish(label, fit, [best_single, second])
                     pairs.append(label)
+        # the learning rate: when even the best-fitting model leaves a training misfit above
+        # the noise, every model's evidence and covariance are read against that misfit
+        eta = _learning_rate(namer, models, lik, train)
+        if eta < 1.0:
+            for label, fit in models.items():
+                fit["log_z"], fit["cov"] = namer.evidence(fit, fit["effects"], bias_w, eta)
+            z_none = models["none"]["log_z"]
         # ramps: every fitted model replays them and they join its evidence as a prediction
         # carrying the fit's uncertainty (the fits themselves use the torsional points)
         ramp_lik, ramp_runs, ramp_ll, chi_r = None, {}, {}, {}
@@ -237,8 +244,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # their ramps are taken as those of "none")
         log_z = {"none": z_none + ramp_ll.get("none", 0.0)}
         for name in cands:
+            # (an unfitted candidate's screen evidence is scaled by eta: approximate, these are the
+            # candidates the screen found least promising)
             log_z[name] = (models[name]["log_z"] + ramp_ll.get(name, 0.0) if name in models
-                           else log_z["none"] + screen[name]["rel_log_evidence"])
+                           else log_z["none"] + eta * screen[name]["rel_log_evidence"])
         for label in pairs:
             log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0)
         for label, fit in models.items():  # a model whose held-out run failed is no match: no evidence
@@ -278,7 +287,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
             typ = screen[name]["y"] if screen[name]["start"] == "calibrated" else None
-            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain)
+            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain, eta)
         # 4) augment
         final = models[top]
         y_aug = y_cal.copy()
@@ -339,7 +348,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                                            zip(rows_all, lik.point_chi2(y_all[rows_all], rows_all, final["nuisance"]))},
                     "nuisance": {"output_gain": math.exp(final["nuisance"][0]),
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
-                    "log_evidence": log_z, "model_prior": priors,
+                    "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
+                    "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_noise_scale": ramp_lik.scales.get(top) if ramp_lik is not None else None,
                     "ramp_samples": ramp_lik.residuals if ramp_lik is not None else 0},
@@ -349,6 +359,16 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     diag.wall_time_s = time.perf_counter() - t0
     report(1.0, "done")
     return diag
+
+
+def _learning_rate(namer, models, lik, train) -> float:
+    """The likelihood's learning rate from the best-fitting model on the training points
+    (:func:`~dampersim.discrepancy.selection.learning_rate`; parameters: the calibration
+    factors, the channels' gain and delay and the model's own columns)."""
+    n = 2 * len(train) * len(drive.ORDERS)
+    best = min(((namer.data_loss(f["y"], f["nuisance"]), len(CALIBRATION) + 2 + len(f["columns"]))
+                for f in models.values()), key=lambda t: t[0] / max(1, n - t[1]))
+    return selection.learning_rate(best[0], n, best[1])
 
 
 def _magnitude(system, name) -> float:
@@ -373,7 +393,7 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
     cov_none = models["none"]["cov"]  # the same kind of covariance as the effect models'
     pad = [np.zeros(lik_r.residuals)] * (cov_none.shape[0] - len(cols_x))  # the channels: not on the ramps
     ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], np.column_stack([*cols_x, *pad]), cov_none)
-    scales = {"none": lik_r.scale}
+    scales, whitened = {"none": lik_r.scale}, {"none": lik_r.whitened}
     for label, fit in models.items():
         if label == "none":
             continue
@@ -385,7 +405,13 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
             cols.append(lik_r.column(ramps_lik.run_ramps(runner, moved, points), runs[label], step))
         cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes, channels: not on the ramps
         ll[label], chi[label], _, _ = lik_r.predictive(runs[label], np.column_stack(cols), fit["cov"])
-        scales[label] = lik_r.scale
+        scales[label], whitened[label] = lik_r.scale, lik_r.whitened
+    # the samples' effective share from the model that explains the ramps best (its residual
+    # is the least systematic); it scales every model's log likelihood from here on
+    best = max(ll, key=lambda m: ll[m])
+    if whitened.get(best) is not None and math.isfinite(ll[best]):
+        lik_r.fraction = ramps_lik.effective_share(whitened[best], lik_r.lengths())
+        ll = {m: v * lik_r.fraction for m, v in ll.items()}
     lik_r.scales, lik_r.cols_x = scales, cols_x
     return lik_r, runs, ll, chi
 

@@ -211,7 +211,7 @@ class Namer:
             cols = self.lik.nuisance_jacobian(y, self.train)
         return cols, np.array([1.0 / GAIN_PRIOR_SD ** 2, 1.0 / DELAY_PRIOR_SD ** 2])
 
-    def evidence(self, fit, names, bias=None) -> tuple:
+    def evidence(self, fit, names, bias=None, eta: float = 1.0) -> tuple:
         """(log evidence, covariance) of a fitted model; ``names``: its effects (the fit
         carries one magnitude column per effect, then its shape columns, in ``columns``;
         "none" has none). The columns are ordered calibration factors, magnitudes, shapes,
@@ -221,33 +221,43 @@ class Namer:
         standardised change of the training coefficients under the discretisation check),
         the square of the parameter shift that change would cause if it were all
         systematic: the model's own discretisation error moves a fitted magnitude without
-        adding scatter, and an interval from the scatter alone would not cover it."""
+        adding scatter, and an interval from the scatter alone would not cover it. eta: the
+        likelihood's learning rate (:func:`~dampersim.discrepancy.selection.learning_rate`)."""
         cols = fit.get("columns", [])
         nu_cols, nu_prec = self._nuisance(fit["y"], fit["nuisance"])
         jac = np.column_stack([self.jac, *cols, nu_cols])
         prec = np.concatenate([self.prec_cal, np.full(len(names), 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2),
                                np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2), nu_prec])
-        cov = selection.posterior_covariance(jac, prec)
+        cov = selection.posterior_covariance(jac, prec, eta)
         if bias is not None:
-            shift = cov @ (jac.T @ bias)
+            shift = eta * (cov @ (jac.T @ bias))
             cov = cov + np.outer(shift, shift)
-        return selection.log_evidence(fit["cost"], jac, prec), cov
+        loss = self.data_loss(fit["y"], fit["nuisance"])
+        return selection.log_evidence(fit["cost"], jac, prec, eta, loss), cov
+
+    def data_loss(self, y, nuisance) -> float:
+        """The robust chi^2 of model coefficients y on the training points at ``nuisance``
+        (the data part of a fit's objective, without any prior term)."""
+        with self.lik.using(nuisance):
+            return self.lik.loss(y, self.train) - self.lik.nuisance_prior()
 
     # --- detectability --------------------------------------------------------------------
-    def detectability(self, name, y_cal, nuisance, y_typ, priors, ramp_gain=None) -> float | None:
+    def detectability(self, name, y_cal, nuisance, y_typ, priors, ramp_gain=None, eta: float = 1.0) -> float | None:
         """The magnitude at the detection threshold of effect ``name`` for this campaign:
         where the chi^2 improvement it would bring, after the calibration and the channels'
         gain and delay have absorbed what they can (its signature projected off those
         directions under their priors), minus its magnitude prior's cost, reaches what a
         posterior of DETECTION_POSTERIOR against "none" needs
         (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): the
-        chi^2 the ramps would add at magnitude m (None: torsional points only)."""
+        chi^2 the ramps would add at magnitude m (None: torsional points only); eta: the
+        likelihood's learning rate, which scales the torsional chi^2 (a threshold read against
+        the misfit the calibrated model really leaves)."""
         e = info(name)
         meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
         cal = self.starts["calibrated"][0]
         nu_cols, nu_prec = self._nuisance(y_cal, nuisance)
         absorb = np.column_stack([self.jac, nu_cols])
-        a = absorb.T @ absorb + np.diag(np.concatenate([self.prec_cal, nu_prec]))
+        a = eta * (absorb.T @ absorb) + np.diag(np.concatenate([self.prec_cal, nu_prec]))
         mags, gains = [], []
         for m in e.magnitudes:
             if m == e.magnitudes[1] and y_typ is not None:
@@ -261,7 +271,8 @@ class Namer:
             proj = absorb.T @ d
             mags.append(m)
             ramps = ramp_gain(name, m) if ramp_gain is not None else 0.0
-            gains.append(float(d @ d - proj @ np.linalg.solve(a, proj)) + ramps - self._magnitude_prior(name, m))
+            torsional = eta * float(d @ d) - eta ** 2 * float(proj @ np.linalg.solve(a, proj))
+            gains.append(torsional + ramps - self._magnitude_prior(name, m))
         if len(mags) < 2:
             return None
         needed = selection.detection_chi2(priors[name], priors["none"])

@@ -18,7 +18,11 @@ model's evidence as a prediction (:meth:`RampLikelihood.predictive`): the residu
 covariance carries the fitted parameters' uncertainty through the ramp's sensitivity to them,
 which also gives the smooth, correlated part of a ramp's misfit its proper weight. The
 samples' uncertainty is scaled per model by the factor (at least 1, see SCALES) that makes
-the ramps most likely; the samples, 0.5 s apart, are treated as independent.
+the ramps most likely. The samples, 0.5 s apart, are not independent where a smooth misfit
+remains: the log likelihood of every model is multiplied by the effective share of
+independent samples, (1 - rho) / (1 + rho) for the lag-one autocorrelation rho of the best
+model's whitened residual (:func:`effective_share`), so sixty correlated samples do not
+count as sixty pieces of evidence.
 """
 
 from __future__ import annotations
@@ -62,6 +66,27 @@ def windup_noise(point) -> float:
     return float(np.std(raw - _filtered(raw, fs)) * math.sqrt(math.pi * fc / fs))
 
 
+def effective_share(whitened, lengths) -> float:
+    """The share of independent samples in a residual whose samples follow each other in
+    time (one run per ramp, ``lengths`` samples each): (1 - rho) / (1 + rho) for its pooled
+    lag-one autocorrelation rho (an AR(1) process's effective sample size over its length),
+    1 for rho <= 0, never below one sample's share."""
+    e = np.asarray(whitened, dtype=float)
+    n = len(e)
+    if n < 3:
+        return 1.0
+    num, den, k = 0.0, 0.0, 0
+    for m in lengths:
+        seg = e[k:k + m] - np.mean(e[k:k + m])
+        k += m
+        num += float(np.sum(seg[1:] * seg[:-1]))
+        den += float(np.sum(seg * seg))
+    rho = num / den if den > 0 else 0.0
+    if rho <= 0:
+        return 1.0
+    return float(max((1.0 - rho) / (1.0 + rho), 1.0 / n))
+
+
 def run_ramps(runner, system, points) -> dict:
     """{point id: simulated windup [rad] on the record's time base, or the run's error text}."""
     out = runner.map([(drive.diagnosis_system(system), p) for p in points])
@@ -74,6 +99,8 @@ class RampLikelihood:
     def __init__(self, points, base: dict, coarse: dict):
         self.points = [p for p in points if not isinstance(base.get(p.id), str)]
         self.scale = 1.0  # the uncertainty scale of the last prediction
+        self.whitened = None  # the last prediction's whitened residual
+        self.fraction = 1.0  # the effective share of independent samples (see effective_share)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:
@@ -112,6 +139,10 @@ class RampLikelihood:
         that run failed: no direction, never a fit)."""
         a, b = self._model(windups), self._model(base)
         return np.zeros(self.residuals) if a is None or b is None else (a - b) / step
+
+    def lengths(self) -> list:
+        """Number of compared samples of each ramp, in stacking order."""
+        return [len(self.idx[p.id]) for p in self.points]
 
     def offset_columns(self) -> np.ndarray:
         """d samples / d offset of each ramp's angle zero (samples x ramps)."""
@@ -167,7 +198,7 @@ class RampLikelihood:
         if not self.residuals or a is None or b is None:
             return 0.0
         d = a - b
-        return float(d @ np.linalg.solve(self._covariance(jac, cov, scale), d))
+        return self.fraction * float(d @ np.linalg.solve(self._covariance(jac, cov, scale), d))
 
     def predictive(self, windups: dict, jac, cov):
         """The ramps' log likelihood given a model fitted on the torsional points, with that
@@ -175,8 +206,10 @@ class RampLikelihood:
         Gaussian with covariance diag(sigma^2) + J cov J' (J: d samples / d parameters, the
         ramps' angle offsets appended with their prior), so a ramp does not condemn a model
         for what its fit leaves uncertain. Returns (log likelihood up to a constant common to
-        all models, chi^2, parameter update cov J' S^-1 r, updated covariance) or
-        (-inf, inf, None, None) when a run failed."""
+        all models, times the effective share ``fraction``; chi^2; parameter update
+        cov J' S^-1 r; updated covariance) or (-inf, inf, None, None) when a run failed. The
+        whitened residual L^-1 r (S = L L') is kept as ``whitened``."""
+        self.whitened = None
         if not self.residuals:  # no ramp whose calibrated run worked: the ramps say nothing
             return 0.0, 0.0, None, None
         r = self.residual(windups)
@@ -194,6 +227,8 @@ class RampLikelihood:
             if best is None or ll > best[0]:
                 best = (ll, chi2, s, sol, scale)
         ll, chi2, s, sol, self.scale = best
+        self.whitened = np.linalg.solve(np.linalg.cholesky(s), r)
+        ll *= self.fraction
         gain = c @ j.T
         update = gain @ sol
         new_cov = c - gain @ np.linalg.solve(s, gain.T)
@@ -225,5 +260,6 @@ def errors_and_traces(stages: dict, points) -> tuple:
     return errors, traces, problems
 
 
-__all__ = ["RAMP_SAMPLE_HZ", "OFFSET_PRIOR_DEG", "WINDUP_FLOOR_DEG", "windup_noise", "run_ramps", "RampLikelihood",
+__all__ = ["RAMP_SAMPLE_HZ", "OFFSET_PRIOR_DEG", "WINDUP_FLOOR_DEG", "effective_share", "windup_noise", "run_ramps",
+           "RampLikelihood",
            "ramp_likelihood", "errors_and_traces"]

@@ -36,27 +36,44 @@ Z90 = 1.6448536269514722
 DETECTION_POSTERIOR = 0.9
 
 
-def log_evidence(cost: float, jac, prior_precision) -> float:
+def learning_rate(loss: float, residuals: int, parameters: int) -> float:
+    """The likelihood's learning rate eta = min(1, (n - p) / loss) from the best-fitting
+    model's data loss (its robust chi^2) over n real residuals with p fitted parameters.
+
+    When even the best model leaves a reduced chi^2 above 1, the uncertainties are
+    optimistic (a misfit the model cannot express: the rig, friction laws a factor does not
+    reach). Raising the likelihood to the power eta (a tempered, "generalised Bayes"
+    posterior) is the same as widening every sigma by 1/sqrt(eta): evidence differences
+    and intervals are then read against the misfit that is really there, and a candidate
+    that only absorbs part of a systematic misfit does not gain certainty from it."""
+    dof = max(1, int(residuals) - int(parameters))
+    if not math.isfinite(loss) or loss <= dof:
+        return 1.0
+    return float(dof / loss)
+
+
+def log_evidence(cost: float, jac, prior_precision, eta: float = 1.0, loss: float = 0.0) -> float:
     """Laplace log evidence of a fit (up to a constant common to all models).
 
     cost: minimised objective (chi^2 plus prior quadratic terms); jac: Jacobian of the
     standardised residuals w.r.t. the fitted parameters (rows x parameters); prior_precision:
-    the parameters' prior precisions (1 / sd^2)."""
+    the parameters' prior precisions (1 / sd^2); eta: the likelihood's learning rate
+    (:func:`learning_rate`), which scales the data part ``loss`` of the cost and J'J."""
     if not math.isfinite(cost):
         return -math.inf
     jac = np.asarray(jac, dtype=float)
     p = np.asarray(prior_precision, dtype=float)
-    a = jac.T @ jac + np.diag(p)
+    a = eta * (jac.T @ jac) + np.diag(p)
     sign, logdet = np.linalg.slogdet(a)
     if sign <= 0:
         return -math.inf
-    return float(-0.5 * cost + 0.5 * np.sum(np.log(p)) - 0.5 * logdet)
+    return float(-0.5 * (cost - (1.0 - eta) * loss) + 0.5 * np.sum(np.log(p)) - 0.5 * logdet)
 
 
-def posterior_covariance(jac, prior_precision) -> np.ndarray:
-    """(J'J + P)^-1: the Laplace posterior covariance of the fitted parameters."""
+def posterior_covariance(jac, prior_precision, eta: float = 1.0) -> np.ndarray:
+    """(eta J'J + P)^-1: the Laplace posterior covariance of the fitted parameters."""
     jac = np.asarray(jac, dtype=float)
-    return np.linalg.inv(jac.T @ jac + np.diag(np.asarray(prior_precision, dtype=float)))
+    return np.linalg.inv(eta * (jac.T @ jac) + np.diag(np.asarray(prior_precision, dtype=float)))
 
 
 def interval90(log_value: float, log_sd: float) -> list:
@@ -162,6 +179,7 @@ def threshold_magnitude(mags, chi2_gain, needed: float, grows: bool, bounds=(Non
     return val
 
 
-__all__ = ["MAGNITUDE_PRIOR_SD", "SHAPE_PRIOR_SD", "MODEL_PRIOR", "Z90", "DETECTION_POSTERIOR", "log_evidence",
+__all__ = ["MAGNITUDE_PRIOR_SD", "SHAPE_PRIOR_SD", "MODEL_PRIOR", "Z90", "DETECTION_POSTERIOR", "learning_rate",
+           "log_evidence",
            "posterior_covariance", "interval90", "model_priors", "posterior", "linear_screen_evidence",
            "detection_chi2", "threshold_magnitude"]

@@ -98,6 +98,35 @@ def test_laplace_evidence_is_exact_for_a_linear_gaussian_model():
     assert lz == pytest.approx(exact, abs=1e-9)
 
 
+def test_a_tempered_evidence_equals_the_evidence_with_widened_uncertainties():
+    """Learning rate eta is the same as every sigma widened by 1/sqrt(eta): the tempered
+    Laplace evidence must equal the closed form with residuals and Jacobian scaled by
+    sqrt(eta) (the data part of the cost scaled, the prior terms not)."""
+    rng = np.random.default_rng(4)
+    jac = rng.standard_normal((40, 3))
+    prec = np.array([4.0, 1.0, 25.0])
+    r = jac @ rng.standard_normal(3) + 2.0 * rng.standard_normal(40)  # noise twice the stated sigma
+    eta = 0.25
+    js, rs = math.sqrt(eta) * jac, math.sqrt(eta) * r
+    theta = np.linalg.solve(js.T @ js + np.diag(prec), js.T @ rs)
+    # the objective at the tempered optimum, split into its data loss (unscaled) and prior terms
+    loss = float((r - jac @ theta) @ (r - jac @ theta))
+    cost = loss + float(theta @ (prec * theta))
+    lz = selection.log_evidence(cost, jac, prec, eta, loss)
+    cov = np.eye(40) + js @ np.diag(1 / prec) @ js.T
+    exact = -0.5 * rs @ np.linalg.solve(cov, rs) - 0.5 * np.linalg.slogdet(cov)[1]
+    assert lz == pytest.approx(exact, abs=1e-9)
+    assert np.allclose(selection.posterior_covariance(jac, prec, eta), np.linalg.inv(js.T @ js + np.diag(prec)))
+
+
+def test_the_learning_rate_reads_the_best_models_misfit():
+    """eta = dof / loss when the best model's reduced chi^2 exceeds 1, else 1: a fit at the
+    noise level is not tempered, one at reduced chi^2 4 widens every sigma by 2."""
+    assert selection.learning_rate(90.0, 100, 8) == 1.0  # 92 degrees of freedom
+    assert selection.learning_rate(4.0 * 92, 100, 8) == pytest.approx(0.25)
+    assert selection.learning_rate(math.inf, 100, 8) == 1.0  # nothing fitted: nothing to read
+
+
 def test_linear_screen_prefers_none_without_signal_and_the_effect_with_it():
     rng = np.random.default_rng(3)
     jac = rng.standard_normal((64, 6))

@@ -79,3 +79,19 @@ def test_a_ramp_signature_counts_only_what_offsets_and_parameters_cannot_absorb(
     assert lik.signature_gain(scaled, base, col, cov, 1.0) < 1.0  # inside the parameter's uncertainty
     assert lik.signature_gain(step, base, col, cov, 1.0) > 100.0  # a free-play step is not absorbed
     assert lik.signature_gain(step, base, col, cov, 10.0) < lik.signature_gain(step, base, col, cov, 1.0) / 50
+
+
+def test_correlated_ramp_samples_count_as_fewer_independent_ones():
+    """An AR(1) residual with lag-one correlation 0.8 carries (1 - 0.8) / (1 + 0.8) = 11 % of
+    its samples' evidence; white noise all of it (20 000 samples: the estimate of rho is
+    within about 0.01, the share within 0.01)."""
+    from dampersim.discrepancy.ramps import effective_share
+
+    rng = np.random.default_rng(8)
+    white = rng.standard_normal(20000)
+    assert effective_share(white, [20000]) > 0.97
+    ar = np.zeros(20000)
+    for t in range(1, 20000):
+        ar[t] = 0.8 * ar[t - 1] + white[t]
+    assert effective_share(ar, [10000, 10000]) == pytest.approx(0.2 / 1.8, abs=0.01)
+    assert effective_share(np.ones(50) + 1e-3 * white[:50], [50]) >= 1.0 / 50  # never below one sample
