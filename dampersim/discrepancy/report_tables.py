@@ -288,7 +288,8 @@ def likelihood_text(doc) -> str:
     """The likelihood summary in one line: reduced χ² on the held-out and the training
     points (of the model named by ``likelihood.model`` when the document says which), the
     number of cells, the noise level the verdict compares with (``noise_level``, when
-    present), the fitted output gain and delay ("" when not computed)."""
+    present), the fitted output gain and delay, and the learning rate when it tempers the
+    evidence (below 1) ("" when not computed)."""
     lik = _dict(doc.get("likelihood")) if isinstance(doc, dict) else {}
     if not lik:
         return ""
@@ -305,6 +306,10 @@ def likelihood_text(doc) -> str:
                      + (f"; up to {number_text(level, 3)} is the noise level." if level is not None else "."))
     if gain is not None or delay is not None:
         parts.append(f"Fitted output gain {number_text(gain, 4)}, delay {number_text(delay, 3, 'ms')}.")
+    eta = _float(lik.get("learning_rate"))
+    if eta is not None and eta < 1.0:
+        parts.append(f"Even the best model leaves a misfit above the noise: the evidence is read with every "
+                     f"uncertainty widened {number_text(1.0 / math.sqrt(eta), 3)}× (learning rate {number_text(eta, 3)}).")
     return " ".join(parts)
 
 

@@ -120,6 +120,10 @@ def test_recommended_points_outliers_and_likelihood_summary():
     named = {**FULL, "likelihood": {**FULL["likelihood"], "model": "clutch_slip", "noise_level": 1.5}}
     assert T.likelihood_text(named).startswith("Reduced χ² of clutch_slip: 1.13 on the held-out points, 0.97 on the "
                                                "training points (96 cells); up to 1.5 is the noise level.")
+    # a learning rate below 1 is said with the widening it means (1/sqrt(0.25) = 2); 1 is not said
+    tempered = {**FULL, "likelihood": {**FULL["likelihood"], "learning_rate": 0.25}}
+    assert T.likelihood_text(tempered).endswith("every uncertainty widened 2× (learning rate 0.25).")
+    assert "learning rate" not in T.likelihood_text({**FULL, "likelihood": {**FULL["likelihood"], "learning_rate": 1.0}})
 
 
 def test_number_text_rounds_without_exponents_in_the_usual_range():
