@@ -206,6 +206,16 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["effects"] = [name]
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
+        def temper():
+            """The learning rate from the best-fitting model so far: when even that model leaves
+            a training misfit above the noise, every model's evidence and covariance are read
+            against that misfit (see selection.learning_rate)."""
+            rate = _learning_rate(namer, models, lik, train)
+            for fit in models.values():
+                fit["log_z"], fit["cov"] = namer.evidence(fit, fit["effects"], bias_w, rate)
+            return rate
+
+        eta = temper()  # before the pair is chosen: the singles are ranked by tempered evidence
         singles = [n for n in shortlisted if n in models]
         pairs = []
         best_single = max(singles, key=lambda n: models[n]["log_z"], default=None)
@@ -226,13 +236,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     fit["m_first"] = f1["m"]
                     finish(label, fit, [best_single, second])
                     pairs.append(label)
-        # the learning rate: when even the best-fitting model leaves a training misfit above
-        # the noise, every model's evidence and covariance are read against that misfit
-        eta = _learning_rate(namer, models, lik, train)
-        if eta < 1.0:
-            for label, fit in models.items():
-                fit["log_z"], fit["cov"] = namer.evidence(fit, fit["effects"], bias_w, eta)
-            z_none = models["none"]["log_z"]
+                    eta = temper()  # the pair may fit better than any single effect
+        z_none = models["none"]["log_z"]
         # ramps: every fitted model replays them and they join its evidence as a prediction
         # carrying the fit's uncertainty (the fits themselves use the torsional points)
         ramp_lik, ramp_runs, ramp_ll, chi_r = None, {}, {}, {}
@@ -244,10 +249,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # their ramps are taken as those of "none")
         log_z = {"none": z_none + ramp_ll.get("none", 0.0)}
         for name in cands:
-            # (an unfitted candidate's screen evidence is scaled by eta: approximate, these are the
-            # candidates the screen found least promising)
             log_z[name] = (models[name]["log_z"] + ramp_ll.get(name, 0.0) if name in models
-                           else log_z["none"] + eta * screen[name]["rel_log_evidence"])
+                           else log_z["none"] + namer.screen_evidence(screen[name], eta))
         for label in pairs:
             log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0)
         for label, fit in models.items():  # a model whose held-out run failed is no match: no evidence
@@ -364,10 +367,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
 def _learning_rate(namer, models, lik, train) -> float:
     """The likelihood's learning rate from the best-fitting model on the training points
     (:func:`~dampersim.discrepancy.selection.learning_rate`; parameters: the calibration
-    factors, the channels' gain and delay and the model's own columns)."""
+    factors, the channels' gain and delay and the model's own columns). Models whose
+    held-out run failed are no match and do not count."""
     n = 2 * len(train) * len(drive.ORDERS)
     best = min(((namer.data_loss(f["y"], f["nuisance"]), len(CALIBRATION) + 2 + len(f["columns"]))
-                for f in models.values()), key=lambda t: t[0] / max(1, n - t[1]))
+                for label, f in models.items() if label == "none" or f["yh"] is not None),
+               key=lambda t: t[0] / max(1, n - t[1]))
     return selection.learning_rate(best[0], n, best[1])
 
 

@@ -73,25 +73,46 @@ class Namer:
         """Linearised joint fit of the effect at its typical magnitude with a re-calibration,
         from each start (scale at least MIN_SCREEN_SCALE: an effect cannot act backwards).
         Keeps the start whose joint model has the higher evidence: {start, scale,
-        rel_log_evidence (against the better of the starts' "none" evidences), cost, y}."""
+        rel_log_evidence (against the better of the starts' "none" evidences), cost, y,
+        parts (each start's standardised residual, signature or None, factors)}."""
         e = info(name)
-        best, z_none = None, -math.inf
+        best, parts = None, []
         for start, (s0, x0, y_s) in self.starts.items():
             ye, failed = self.runs(with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), name)
             with self.lik.using(self.lik.profile(y_s, self.train)[1]):  # this start's own nuisance
                 r = self.lik.mvec(self.train) - self.lik.vec(y_s, self.train)
                 d = None if failed else self.w(ye - y_s)
-            z_none = max(z_none, selection.linear_screen_evidence(r, self.jac, None, x0, PRIOR_LOG_SD)[0])
+            parts.append((r, d, x0))
             if failed:
-                cand = {"start": start, "scale": 0.0, "z": -math.inf, "cost": math.inf, "y": None}
+                cand = {"start": start, "scale": 0.0, "cost": math.inf, "y": None}
             else:
-                z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
+                _, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
                                                                min_scale=MIN_SCREEN_SCALE)
-                cand = {"start": start, "scale": sc, "z": z, "cost": c, "y": ye}
+                cand = {"start": start, "scale": sc, "cost": c, "y": ye}
+            cand["z"] = self._screen_z(r, d, x0, 1.0)
             if best is None or cand["z"] > best["z"]:
                 best = cand
-        best["rel_log_evidence"] = best.pop("z") - z_none
+        best.pop("z")
+        best["parts"] = parts
+        best["rel_log_evidence"] = self.screen_evidence(best, 1.0)
         return best
+
+    def _screen_z(self, r, d, x0, eta: float) -> float:
+        """The linear screen's log evidence of one start with the likelihood tempered by eta
+        (residual, Jacobian and signature scaled by sqrt(eta): exact for the linear model)."""
+        if d is None:
+            return -math.inf
+        k = math.sqrt(eta)
+        return selection.linear_screen_evidence(k * r, k * self.jac, k * d, x0, PRIOR_LOG_SD,
+                                                min_scale=MIN_SCREEN_SCALE)[0]
+
+    def screen_evidence(self, entry, eta: float) -> float:
+        """A screened candidate's log evidence relative to "none" at learning rate eta: its
+        best start against the better of the starts' "none" evidences."""
+        k = math.sqrt(eta)
+        z_none = max(selection.linear_screen_evidence(k * r, k * self.jac, None, x0, PRIOR_LOG_SD)[0]
+                     for r, _, x0 in entry["parts"])
+        return max(self._screen_z(r, d, x0, eta) for r, d, x0 in entry["parts"]) - z_none
 
     # --- fits --------------------------------------------------------------------------------
     def _magnitude_prior(self, name, m) -> float:
@@ -233,7 +254,20 @@ class Namer:
             shift = eta * (cov @ (jac.T @ bias))
             cov = cov + np.outer(shift, shift)
         loss = self.data_loss(fit["y"], fit["nuisance"])
-        return selection.log_evidence(fit["cost"], jac, prec, eta, loss), cov
+        return selection.log_evidence(fit["cost"], jac, prec, eta, loss, self._offset(fit, names)), cov
+
+    @staticmethod
+    def _offset(fit, names) -> np.ndarray:
+        """The fitted parameters minus their prior centres, in the evidence's column order:
+        calibration factors, magnitudes (log, against the typical value), shapes (log,
+        against their start), channel log gain and delay."""
+        mags = [fit.get("m_first", fit.get("m")), fit.get("m")][-len(names):] if names else []
+        shapes = fit.get("shapes") or {}
+        start = fit.get("shape_start") or {}
+        return np.concatenate([np.asarray(fit["x"], dtype=float),
+                               [math.log(m / info(n).magnitudes[1]) for n, m in zip(names, mags)],
+                               [math.log(shapes[q] / v) if q in shapes else 0.0 for q, v in start.items()],
+                               np.asarray(fit["nuisance"], dtype=float)])
 
     def data_loss(self, y, nuisance) -> float:
         """The robust chi^2 of model coefficients y on the training points at ``nuisance``

@@ -70,7 +70,7 @@ def effective_share(whitened, lengths) -> float:
     """The share of independent samples in a residual whose samples follow each other in
     time (one run per ramp, ``lengths`` samples each): (1 - rho) / (1 + rho) for its pooled
     lag-one autocorrelation rho (an AR(1) process's effective sample size over its length),
-    1 for rho <= 0, never below one sample's share."""
+    1 for rho <= 0, never below one sample per ramp."""
     e = np.asarray(whitened, dtype=float)
     n = len(e)
     if n < 3:
@@ -84,7 +84,7 @@ def effective_share(whitened, lengths) -> float:
     rho = num / den if den > 0 else 0.0
     if rho <= 0:
         return 1.0
-    return float(max((1.0 - rho) / (1.0 + rho), 1.0 / n))
+    return float(max((1.0 - rho) / (1.0 + rho), len(lengths) / n))
 
 
 def run_ramps(runner, system, points) -> dict:

@@ -308,8 +308,9 @@ def likelihood_text(doc) -> str:
         parts.append(f"Fitted output gain {number_text(gain, 4)}, delay {number_text(delay, 3, 'ms')}.")
     eta = _float(lik.get("learning_rate"))
     if eta is not None and eta < 1.0:
-        parts.append(f"Even the best model leaves a misfit above the noise: the evidence is read with every "
-                     f"uncertainty widened {number_text(1.0 / math.sqrt(eta), 3)}× (learning rate {number_text(eta, 3)}).")
+        parts.append(f"Even the best model leaves a training misfit above the stated uncertainties: the torsional "
+                     f"evidence is read with every uncertainty widened {number_text(1.0 / math.sqrt(eta), 3)}× "
+                     f"(learning rate {number_text(eta, 3)}).")
     return " ".join(parts)
 
 

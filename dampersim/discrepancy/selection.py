@@ -6,14 +6,16 @@ spread PRIOR_LOG_SD), the channels' nuisance (gain and delay, see
 parameter under a Gaussian prior centred on the effect's typical value with spread
 MAGNITUDE_PRIOR_SD. The evidence is the Laplace approximation around the fit:
 
-    log Z = -C/2 + log det(P)/2 - log det(J'J + P)/2
+    log Z = -(eta L + Q)/2 + log det(P)/2 - log det(eta J'J + P)/2
 
-with C the minimised objective (robust chi^2 plus the priors' quadratic terms), J the
-Jacobian of the standardised residuals with respect to all fitted parameters and P the
-priors' precision. The last two terms are the Occam factor: a parameter the data do not
-need costs evidence. Posterior probabilities follow from the evidence and the model priors
-of MODEL_PRIOR (stated in docs/discrepancy.md); 90 % intervals of a fitted parameter are
-its estimate +- 1.645 posterior standard deviations in log space (from (J'J + P)^-1).
+with L the fit's robust chi^2, Q the priors' quadratic terms, J the Jacobian of the
+standardised residuals with respect to all fitted parameters, P the priors' precision and
+eta the likelihood's learning rate (:func:`learning_rate`; 1 when the best model fits to
+the noise, and then C = L + Q is the minimised objective). The last two terms are the Occam
+factor: a parameter the data do not need costs evidence. Posterior probabilities follow
+from the evidence and the model priors of MODEL_PRIOR (stated in docs/discrepancy.md); 90 %
+intervals of a fitted parameter are its estimate +- 1.645 posterior standard deviations in
+log space (from (eta J'J + P)^-1).
 """
 
 from __future__ import annotations
@@ -52,13 +54,19 @@ def learning_rate(loss: float, residuals: int, parameters: int) -> float:
     return float(dof / loss)
 
 
-def log_evidence(cost: float, jac, prior_precision, eta: float = 1.0, loss: float = 0.0) -> float:
+def log_evidence(cost: float, jac, prior_precision, eta: float = 1.0, loss: float = 0.0, offset=None) -> float:
     """Laplace log evidence of a fit (up to a constant common to all models).
 
     cost: minimised objective (chi^2 plus prior quadratic terms); jac: Jacobian of the
     standardised residuals w.r.t. the fitted parameters (rows x parameters); prior_precision:
     the parameters' prior precisions (1 / sd^2); eta: the likelihood's learning rate
-    (:func:`learning_rate`), which scales the data part ``loss`` of the cost and J'J."""
+    (:func:`learning_rate`), which scales the data part ``loss`` of the cost and J'J.
+
+    The fit minimises the untempered objective; with eta < 1 the tempered one has its
+    minimum elsewhere. offset: the fitted parameters minus their prior centres; the tempered
+    objective's gradient there is 2 g with g = (1 - eta) P offset, its Hessian 2 A with
+    A = eta J'J + P, and one Newton step to its minimum adds g'A^-1 g / 2 to log Z (exact
+    for a linear model)."""
     if not math.isfinite(cost):
         return -math.inf
     jac = np.asarray(jac, dtype=float)
@@ -67,7 +75,11 @@ def log_evidence(cost: float, jac, prior_precision, eta: float = 1.0, loss: floa
     sign, logdet = np.linalg.slogdet(a)
     if sign <= 0:
         return -math.inf
-    return float(-0.5 * (cost - (1.0 - eta) * loss) + 0.5 * np.sum(np.log(p)) - 0.5 * logdet)
+    newton = 0.0
+    if offset is not None and eta < 1.0:
+        g = (1.0 - eta) * p * np.asarray(offset, dtype=float)
+        newton = 0.5 * float(g @ np.linalg.solve(a, g))
+    return float(-0.5 * (cost - (1.0 - eta) * loss) + newton + 0.5 * np.sum(np.log(p)) - 0.5 * logdet)
 
 
 def posterior_covariance(jac, prior_precision, eta: float = 1.0) -> np.ndarray:

@@ -122,7 +122,8 @@ def test_recommended_points_outliers_and_likelihood_summary():
                                                "training points (96 cells); up to 1.5 is the noise level.")
     # a learning rate below 1 is said with the widening it means (1/sqrt(0.25) = 2); 1 is not said
     tempered = {**FULL, "likelihood": {**FULL["likelihood"], "learning_rate": 0.25}}
-    assert T.likelihood_text(tempered).endswith("every uncertainty widened 2× (learning rate 0.25).")
+    assert T.likelihood_text(tempered).endswith("torsional evidence is read with every uncertainty widened 2× "
+                                                "(learning rate 0.25).")
     assert "learning rate" not in T.likelihood_text({**FULL, "likelihood": {**FULL["likelihood"], "learning_rate": 1.0}})
 
 

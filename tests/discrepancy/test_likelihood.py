@@ -117,6 +117,14 @@ def test_a_tempered_evidence_equals_the_evidence_with_widened_uncertainties():
     exact = -0.5 * rs @ np.linalg.solve(cov, rs) - 0.5 * np.linalg.slogdet(cov)[1]
     assert lz == pytest.approx(exact, abs=1e-9)
     assert np.allclose(selection.posterior_covariance(jac, prec, eta), np.linalg.inv(js.T @ js + np.diag(prec)))
+    # the diagnosis fits the untempered objective: from that fit (its parameters' offset from
+    # the prior centres, 0 here) the Newton step of log_evidence must land on the same value;
+    # without it the evidence is too low, the more so the farther the fit is from its prior
+    theta1 = np.linalg.solve(jac.T @ jac + np.diag(prec), jac.T @ r)
+    loss1 = float((r - jac @ theta1) @ (r - jac @ theta1))
+    cost1 = loss1 + float(theta1 @ (prec * theta1))
+    assert selection.log_evidence(cost1, jac, prec, eta, loss1, offset=theta1) == pytest.approx(exact, abs=1e-9)
+    assert selection.log_evidence(cost1, jac, prec, eta, loss1) < exact - 0.1
 
 
 def test_the_learning_rate_reads_the_best_models_misfit():

@@ -94,4 +94,14 @@ def test_correlated_ramp_samples_count_as_fewer_independent_ones():
     for t in range(1, 20000):
         ar[t] = 0.8 * ar[t - 1] + white[t]
     assert effective_share(ar, [10000, 10000]) == pytest.approx(0.2 / 1.8, abs=0.01)
-    assert effective_share(np.ones(50) + 1e-3 * white[:50], [50]) >= 1.0 / 50  # never below one sample
+    # the autocorrelation is read within each ramp: two ramps whose misfits differ by a
+    # constant (each ramp has its own angle offset) are white inside; pooled as one ramp the
+    # step between them reads as a strong correlation
+    steps = np.concatenate([white[:100] + 10.0, white[100:200] - 10.0])
+    assert effective_share(steps, [100, 100]) > 0.7
+    assert effective_share(steps, [200]) < 0.05
+    # a pure trend is worth about one and a half samples (rho = 0.94 for 50 samples), and a
+    # ramp never counts as less than one sample
+    assert 1.0 / 50 <= effective_share(np.linspace(0.0, 1.0, 50), [50]) < 0.05
+    # a smooth half wave in each of two ramps: about one sample per ramp, never fewer
+    assert 2.0 / 200 <= effective_share(np.tile(np.cos(np.linspace(0.0, np.pi, 100)), 2), [100, 100]) < 0.011
