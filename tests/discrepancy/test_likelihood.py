@@ -135,6 +135,26 @@ def test_the_learning_rate_reads_the_best_models_misfit():
     assert selection.learning_rate(math.inf, 100, 8) == 1.0  # nothing fitted: nothing to read
 
 
+def test_the_diagnosis_reads_the_learning_rate_off_its_best_model_that_ran():
+    """The best model is the one with the smallest loss per degree of freedom among those
+    whose held-out run worked; its parameters are the six factors, gain, delay and its own
+    columns (8 training points x 8 orders x 2 = 128 real residuals)."""
+    from dampersim.discrepancy.diagnose import _learning_rate
+
+    class FakeNamer:
+        @staticmethod
+        def data_loss(y, nuisance):
+            return y
+
+    ran = np.zeros(1)
+    models = {"none": {"y": 300.0, "nuisance": None, "columns": [], "yh": ran},
+              "a": {"y": 150.0, "nuisance": None, "columns": [0, 0], "yh": ran},
+              "b": {"y": 100.0, "nuisance": None, "columns": [0], "yh": None}}  # failed: no match
+    assert _learning_rate(FakeNamer, models, None, list(range(8))) == pytest.approx((128 - 10) / 150.0)
+    models["a"]["y"] = 100.0  # at the noise: nothing to temper
+    assert _learning_rate(FakeNamer, models, None, list(range(8))) == 1.0
+
+
 def test_linear_screen_prefers_none_without_signal_and_the_effect_with_it():
     rng = np.random.default_rng(3)
     jac = rng.standard_normal((64, 6))
