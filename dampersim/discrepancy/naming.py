@@ -84,12 +84,11 @@ class Namer:
                 d = None if failed else self.w(ye - y_s)
             parts.append((r, d, x0))
             if failed:
-                cand = {"start": start, "scale": 0.0, "cost": math.inf, "y": None}
+                cand = {"start": start, "scale": 0.0, "z": -math.inf, "cost": math.inf, "y": None}
             else:
-                _, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
+                z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
                                                                min_scale=MIN_SCREEN_SCALE)
-                cand = {"start": start, "scale": sc, "cost": c, "y": ye}
-            cand["z"] = self._screen_z(r, d, x0, 1.0)
+                cand = {"start": start, "scale": sc, "z": z, "cost": c, "y": ye}
             if best is None or cand["z"] > best["z"]:
                 best = cand
         best.pop("z")
