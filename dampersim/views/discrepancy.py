@@ -58,9 +58,10 @@ DISCREPANCY_FORMAT = 3
 #: Default example campaign of the page (the first bundled one if it is missing).
 DEFAULT_EXAMPLE = "hidden-effect-example"
 #: Rough cost of the diagnosis [core seconds per second of torsional record], measured
-#: on the bundled example (12 points of 1 s: 69 s on 2 cores with
-#: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json``).
-DIAGNOSIS_CORE_S_PER_RECORD_S = 11.2
+#: on the bundled example (12 points of 1 s, no ramp: 278 s on 2 idle cores with
+#: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json`` on
+#: commit dd443e3, 1676 model runs).
+DIAGNOSIS_CORE_S_PER_RECORD_S = 46.0
 #: Dropdown values of uploads: this prefix and the upload id.
 UPLOAD_PREFIX = "upload:"
 
