@@ -210,7 +210,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             """The learning rate from the best-fitting model so far: when even that model leaves
             a training misfit above the noise, every model's evidence and covariance are read
             against that misfit (see selection.learning_rate)."""
-            rate = _learning_rate(namer, models, lik, train)
+            rate = _learning_rate(namer, models, train)
             for fit in models.values():
                 fit["log_z"], fit["cov"] = namer.evidence(fit, fit["effects"], bias_w, rate)
             return rate
@@ -364,7 +364,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     return diag
 
 
-def _learning_rate(namer, models, lik, train) -> float:
+def _learning_rate(namer, models, train) -> float:
     """The likelihood's learning rate from the best-fitting model on the training points
     (:func:`~dampersim.discrepancy.selection.learning_rate`; parameters: the calibration
     factors, the channels' gain and delay and the model's own columns). Models whose

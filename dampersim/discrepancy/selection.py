@@ -6,16 +6,17 @@ spread PRIOR_LOG_SD), the channels' nuisance (gain and delay, see
 parameter under a Gaussian prior centred on the effect's typical value with spread
 MAGNITUDE_PRIOR_SD. The evidence is the Laplace approximation around the fit:
 
-    log Z = -(eta L + Q)/2 + log det(P)/2 - log det(eta J'J + P)/2
+    log Z = -(eta L + Q)/2 + g'A^-1 g/2 + log det(P)/2 - log det(A)/2,  A = eta J'J + P
 
-with L the fit's robust chi^2, Q the priors' quadratic terms, J the Jacobian of the
+(g'A^-1 g/2: the step from the untempered fit to the tempered optimum, see
+:func:`log_evidence`) with L the fit's robust chi^2, Q the priors' quadratic terms, J the Jacobian of the
 standardised residuals with respect to all fitted parameters, P the priors' precision and
 eta the likelihood's learning rate (:func:`learning_rate`; 1 when the best model fits to
 the noise, and then C = L + Q is the minimised objective). The last two terms are the Occam
 factor: a parameter the data do not need costs evidence. Posterior probabilities follow
 from the evidence and the model priors of MODEL_PRIOR (stated in docs/discrepancy.md); 90 %
 intervals of a fitted parameter are its estimate +- 1.645 posterior standard deviations in
-log space (from (eta J'J + P)^-1).
+log space (from A^-1).
 """
 
 from __future__ import annotations

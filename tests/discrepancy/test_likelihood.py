@@ -150,9 +150,9 @@ def test_the_diagnosis_reads_the_learning_rate_off_its_best_model_that_ran():
     models = {"none": {"y": 300.0, "nuisance": None, "columns": [], "yh": ran},
               "a": {"y": 150.0, "nuisance": None, "columns": [0, 0], "yh": ran},
               "b": {"y": 100.0, "nuisance": None, "columns": [0], "yh": None}}  # failed: no match
-    assert _learning_rate(FakeNamer, models, None, list(range(8))) == pytest.approx((128 - 10) / 150.0)
+    assert _learning_rate(FakeNamer, models, list(range(8))) == pytest.approx((128 - 10) / 150.0)
     models["a"]["y"] = 100.0  # at the noise: nothing to temper
-    assert _learning_rate(FakeNamer, models, None, list(range(8))) == 1.0
+    assert _learning_rate(FakeNamer, models, list(range(8))) == 1.0
 
 
 def test_linear_screen_prefers_none_without_signal_and_the_effect_with_it():
