@@ -96,14 +96,16 @@ def run_all(jobs, workers=2):
         return list(pool.map(_job, jobs, chunksize=1))
 
 
-def reference_system(base, kind):
+def reference_system(base, kind, reference=None):
+    """The reference run's parameter set: ``reference`` is a time step [s] (kind 'step')
+    or an (outer, inner) segment pair (kind 'segments'); None takes the module's default."""
     if kind == "step":
-        return with_updates(base, {"solver.time_step": REFERENCE_STEP})
-    return with_updates(base, {"solver.outer_segments": REFERENCE_SEGMENTS[0],
-                               "solver.inner_segments": REFERENCE_SEGMENTS[1]})
+        return with_updates(base, {"solver.time_step": reference or REFERENCE_STEP})
+    no, ni = reference or REFERENCE_SEGMENTS
+    return with_updates(base, {"solver.outer_segments": no, "solver.inner_segments": ni})
 
 
-def references(base, kind, workers=2):
+def references(base, kind, workers=2, reference=None):
     """Reference outputs [N m] (run 0), the physical spread [%] per point and order (NaN
     where the order carries less than MIN_SHARE of the largest), and the reference's
     sensitivity to the friction tolerance [%]: the change of each order when the
@@ -112,7 +114,7 @@ def references(base, kind, workers=2):
     steady states at that point (which one a run reaches depends on its run-up): no
     step size removes that difference, and the spread, which perturbs only the input
     amplitude by 1e-9, does not see it."""
-    ref = reference_system(base, kind)
+    ref = reference_system(base, kind, reference)
     tight = with_updates(ref, {"solver.friction_tolerance": ref.solver.friction_tolerance / 100.0})
     jobs = [(ref, p, 1.0 + i * 1e-9) for p in POINTS for i in range(SPREAD_RUNS)] + [(tight, p, 1.0) for p in POINTS]
     allout = np.array(run_all(jobs, workers))

@@ -12,6 +12,7 @@ or 32/12-segment reference, tolerance 1 % / 2 % or twice the order's physical sp
     python bench/bench_accuracy.py --grid step                  # default step (~15 min first time)
     python bench/bench_accuracy.py --grid step --steps 2e-5,1/60000
     python bench/bench_accuracy.py --grid segments --segments 18/8,24/10
+    python bench/bench_accuracy.py --grid segments --reference 64/24 --segments 32/12,48/16
     python bench/bench_accuracy.py --grid step --set solver.friction_scheme=trapezoidal
     python bench/bench_accuracy.py --grid newton   # friction re-solves per point (~30 s)
     python bench/bench_accuracy.py --energy        # energy balance across the knee only
@@ -49,13 +50,18 @@ def knee_energy():
           f"contact ({e['hardstop'][-1]:.1f} J) dissipation")
 
 
-def grid(kind, candidates, workers, overrides=None):
+def grid(kind, candidates, workers, overrides=None, reference=None):
     """Print the accuracy grid for each candidate (a time step [s] or 'outer/inner' segment
     counts, with the parameter ``overrides`` {dotted name: value}) against the default
-    set's reference, and a summary line per candidate."""
+    set's reference (``reference``: its step [s] or segment pair, None for the grid's
+    default), and a summary line per candidate."""
     import accuracy_grid as ag
 
-    ref_out, spread, sens = ag.references(P, kind, workers)
+    ref_out, spread, sens = ag.references(P, kind, workers, reference)
+    if kind == "step":
+        ref_label = f"a {reference or ag.REFERENCE_STEP:.6g} s"
+    else:
+        ref_label = "a {}/{}-segment".format(*(reference or ag.REFERENCE_SEGMENTS))
     limit = 1.0 if kind == "step" else 2.0
     base = with_updates(P, overrides or {})
     for cand in candidates:
@@ -69,7 +75,7 @@ def grid(kind, candidates, workers, overrides=None):
         if overrides:
             label += " with " + ", ".join(f"{k}={v}" for k, v in overrides.items())
         err, ok, allowed = ag.errors(system, ref_out, spread, limit, workers)
-        print(f"--- {label} against {'a 1e-6 s' if kind == 'step' else 'a 32/12-segment'} reference")
+        print(f"--- {label} against {ref_label} reference")
         for row in ag.table(err, spread, sens, ok, allowed):
             print(row)
         judged = ~np.isnan(err)
@@ -149,6 +155,8 @@ def _cli():
                     help="run the accuracy grid instead ('newton': friction re-solve counts at the grid's points)")
     ap.add_argument("--steps", default=None, help="candidate steps [s], comma-separated (a/b allowed)")
     ap.add_argument("--segments", default=None, help="candidate 'outer/inner' segment counts, comma-separated")
+    ap.add_argument("--reference", default=None,
+                    help="the reference: a step [s] for --grid step, 'outer/inner' for --grid segments")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="parameter override of the candidates (not of the reference), repeatable")
@@ -181,7 +189,13 @@ def _cli():
     for item in a.set:
         name, _, value = item.partition("=")
         overrides[name] = _value(value)
-    grid(a.grid, cands, a.workers, overrides)
+    if a.reference is None:
+        reference = None
+    elif a.grid == "step":
+        reference = _step(a.reference)
+    else:
+        reference = tuple(int(n) for n in a.reference.split("/"))
+    grid(a.grid, cands, a.workers, overrides, reference)
 
 
 def _value(text):
