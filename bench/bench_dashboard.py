@@ -1,7 +1,7 @@
 """Benchmark: dashboard responsiveness, measured as server time through Dash's HTTP endpoint.
 
 1. Explorer update for one test point, cache miss, default settings (2.6 s simulated,
-   18/8 segments, orders 2:300): POST /_dash-update-component of the Explorer callback with
+   48/16 segments, orders 2:300): POST /_dash-update-component of the Explorer callback with
    a new speed each time. Target <= 1 s.
 2. Cached views: the same request again for every page (the Explorer and Segments
    callbacks; for Colourmap, Hysteresis and Maps the request callback that finds the cache
@@ -78,13 +78,21 @@ def rows(prefix, ks, amps, phs):
     return {f'{{"field":"{f}","row":["ALL"],"type":"{prefix}-order"}}.value': items(f, v) for f, v in (("k", ks), ("a", amps), ("ph", phs))}
 
 
+def _default_segments():
+    """The default set's (outer, inner) segment counts, as the Explorer's controls show them."""
+    from dampersim import default_parameters
+
+    sv = default_parameters().solver
+    return sv.outer_segments, sv.inner_segments
+
+
 def explorer_values(speed):
     names = ["solver.outer_segments", "solver.inner_segments"]
     pid = '{"name":["ALL"],"type":"explorer-param"}'
     v = {"explorer-speed.value": speed, "explorer-torque.value": 200, "explorer-duration.value": 2.6,
          "explorer-switches.value": ["friction.enabled", "hardstops.enabled"], "explorer-motor.value": "pi",
          "explorer-base-params.data": {"set": None, "overrides": {}},
-         f"{pid}.value": [({"name": n, "type": "explorer-param"}, x) for n, x in zip(names, (18, 8))],
+         f"{pid}.value": [({"name": n, "type": "explorer-param"}, x) for n, x in zip(names, _default_segments())],
          f"{pid}.id": [({"name": n, "type": "explorer-param"}, {"name": n, "type": "explorer-param"}) for n in names]}
     v.update(rows("explorer", [2], [300], [0]))
     return v

@@ -22,8 +22,8 @@ segments at 1e-6 s, on the 2-core development machine, friction on): 18.6 ns per
 step·DOF, i.e. 5.3e7 to 5.9e7 step·DOF per second of one core; friction off is about
 twice as fast. :data:`STEP_DOF_PER_SECOND` takes the slower, rounded figure, 5e7, so a
 time estimate errs long. The default budgets follow from it: :data:`DEFAULT_AUTOSTART`
-1.2e9 step·DOF (about 24 s of one core: every default page state, the largest being the
-Maps page's 80 points at 5.0e8, starts by itself) and :data:`DEFAULT_LIMIT` 4.5e10 step·DOF
+2.5e9 step·DOF (about 50 s of one core: every default page state, the largest being the
+Maps page's 80 points at 2.15e9 with the default 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 4.5e10 step·DOF
 (about 15 min of one core). Both are server settings, read from the environment at call
 time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
 step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes (default 1 GiB).
@@ -59,8 +59,8 @@ FOREGROUND_WORK = 60.0 * STEP_DOF_PER_SECOND
 #: call time; ``python app.py`` sets it to half of ``--threads`` unless it is set).
 DEFAULT_FOREGROUND_SLOTS = max(1, 8 // 2)
 FOREGROUND_SLOTS_ENV = "DAMPERSIM_FOREGROUND_SLOTS"
-#: Default autostart budget [step·DOF]: about 24 s of one core.
-DEFAULT_AUTOSTART = 1.2e9
+#: Default autostart budget [step·DOF]: about 50 s of one core.
+DEFAULT_AUTOSTART = 2.5e9
 #: Default limit [step·DOF]: about 15 minutes of one core.
 DEFAULT_LIMIT = 4.5e10
 #: Default memory limit of one request [B]: 1 GiB.
@@ -372,7 +372,7 @@ def budgets() -> Budgets:
     ones take the defaults. An autostart budget above the limit is lowered to the limit.
     Raises InputError naming the variable, its value and what is accepted."""
     limit = _env_number(BUDGET_ENV, DEFAULT_LIMIT, "step·DOF", f"{DEFAULT_LIMIT:.1e} (about 15 min of one core)")
-    auto = _env_number(AUTOSTART_ENV, DEFAULT_AUTOSTART, "step·DOF", f"{DEFAULT_AUTOSTART:.1e} (about 24 s of one core)")
+    auto = _env_number(AUTOSTART_ENV, DEFAULT_AUTOSTART, "step·DOF", f"{DEFAULT_AUTOSTART:.1e} (about 50 s of one core)")
     mem = _env_number(BYTES_ENV, DEFAULT_BYTES_LIMIT, "bytes", f"{int(DEFAULT_BYTES_LIMIT)} (1 GiB)")
     return Budgets(limit=limit, autostart=min(auto, limit), bytes_limit=mem)
 

@@ -26,7 +26,7 @@ CAL_BOUND = math.log(2.0)  # scale factors limited to 1/2 .. 2
 #: relative gain tolerance of the torque channels: only for the displayed noise floor [N m]
 #: (the likelihood fits the channels' gain as a nuisance parameter instead)
 GAIN_TOLERANCE = 0.015
-COARSE_SEGMENTS = 2.0 / 3.0  # segment-count ratio of the discretisation check (18/8 -> 12/5)
+COARSE_SEGMENTS = 2.0 / 3.0  # segment-count ratio of the discretisation check (48/16 -> 32/11)
 PRIOR_LOG_SD = 0.2  # prior spread of the estimated parameters (log factor, ~20 %)
 CAL_STEP_FRACTIONS = (1.0, 0.5, 0.25)  # calibration step lengths tried, longest first
 CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gauss-Newton (x0.74 .. x1.35)

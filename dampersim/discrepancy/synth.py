@@ -41,6 +41,8 @@ TORQUE_CURVE_RPM = (1200, 1400, 1600, 1800, 2000, 2200, 2400, 2600, 2800)
 MAPPING_RPM = (900, 1200, 1500, 1800, 2000)
 MAPPING_NM = (50, 150, 250, 350, 500)
 RAMP_RPM = (1000, 1500, 2000)
+#: segment-count ratio of the synthetic truth to its base (finer, like a real damper) [-]
+FINE_SEGMENTS = 4.0 / 3.0
 RAMP_PROTOCOL = "full-450"  # [thesis] Table 3.1: 0 -> 450 -> -180 -> 0 N m, 50 N m/s, 2 s hold
 #: parameters of [thesis] §6.1 that are estimated rather than measured (perturbed in the truth)
 ESTIMATED = (
@@ -130,10 +132,13 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
     for k, v in (updates or {}).items():
         applied[k] = v
     if fine:
-        # finer than the diagnosis model in both: 24/10 segments against 18/8, and 5e-6 s
-        # against the default 1/120 000 s (8.3e-6 s; the truth's 1e-5 s dated from the
-        # earlier 1/60 000 s default and is now the coarser one)
-        applied.update({"solver.outer_segments": 24, "solver.inner_segments": 10, "solver.time_step": 5e-6})
+        # finer than the diagnosis model in both: a third more segments than the base,
+        # rounded down (64/21 against the default 48/16, 24/10 against the thesis's 18/8)
+        # and 5e-6 s against the default 1/120 000 s (8.3e-6 s)
+        so = base.solver
+        applied.update({"solver.outer_segments": max(so.outer_segments + 1, int(so.outer_segments * FINE_SEGMENTS)),
+                        "solver.inner_segments": max(so.inner_segments + 1, int(so.inner_segments * FINE_SEGMENTS)),
+                        "solver.time_step": 5e-6})
     system = with_updates(base, applied)
     for name, values in effects:
         e = info(name)

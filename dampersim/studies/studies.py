@@ -46,6 +46,9 @@ from dampersim.signal import order_amplitudes
 from dampersim.simulation import simulate
 
 PRIMARY = (2.0, 4.0, 6.0)
+#: length share of the outer spring read as its secondary end: the thesis's five end
+#: segments of eighteen ([thesis] Fig. 7.29), kept as a length at any segment count [-]
+SECONDARY_END_FRACTION = 5.0 / 18.0
 
 
 def _default(system):
@@ -454,7 +457,7 @@ def _speed_stiffness_plan(system, quick) -> Plan:
     """Cached slow-sine runs of 4 s: every speed x frequency x amplitude."""
     speeds = (500.0, 3000.0) if quick else tuple(float(r) for r in range(500, 3001, 250))
     freqs = (2.0,) if quick else (2.0, 5.0)
-    amps = (20.0, 50.0, 100.0, 150.0) if quick else (20.0, 35.0, 50.0, 75.0, 100.0, 150.0)
+    amps = (10.0, 20.0, 50.0, 100.0, 150.0) if quick else (10.0, 20.0, 35.0, 50.0, 75.0, 100.0, 150.0)
     duration = 4.0
     jobs, keys = [], []
     for rpm in speeds:
@@ -466,6 +469,15 @@ def _speed_stiffness_plan(system, quick) -> Plan:
                 keys.append((rpm, f, a))
     return Plan([RunsStep("speed-stiffness-v2", _stiffness_run, tuple(jobs))], speeds=speeds, freqs=freqs, amps=amps,
                 duration=duration, keys=keys)
+
+
+def secondary_end_share(ranges) -> float:
+    """Share [-] of the outer spring's segment motion (``ranges``: each segment's
+    compression range, secondary end first, any unit) carried by the segments of its
+    secondary-end SECONDARY_END_FRACTION (at least one segment)."""
+    rng = np.asarray(ranges, dtype=float)
+    n = max(1, round(len(rng) * SECONDARY_END_FRACTION))
+    return float(rng[:n].sum() / rng.sum())
 
 
 def speed_stiffness(system=None, quick=False, executor="processes", progress=None, cancel=None):
@@ -499,7 +511,7 @@ def speed_stiffness(system=None, quick=False, executor="processes", progress=Non
             rng = np.array(best["segment_range_deg"])
             seg[f"{target:g}deg_{rpm:g}rpm"] = {"angle_deg": best["angle_deg"], "amplitude_nm": best["amplitude_nm"],
                                                 "segment_range_deg": rng.tolist(),
-                                                "end_share": float(rng[:5].sum() / rng.sum())}
+                                                "end_share": secondary_end_share(rng)}
     s5 = seg[f"5deg_{speeds[-1]:g}rpm"]["end_share"] / seg[f"5deg_{speeds[0]:g}rpm"]["end_share"]
     results = {"runs": runs, "stiffness_at_angle": {"speeds_rpm": list(speeds), "frequency_hz": freqs[0], **at},
                "stiffness_at_angle_by_frequency": at_by_f,

@@ -40,7 +40,7 @@ from dampersim.discrepancy.report import (
 )
 from dampersim.discrepancy.upload import CAMPAIGN_ACCEPTED, UPLOAD_ID, UPLOAD_LIMITS
 from dampersim.errors import InputError
-from dampersim.parameters import default_parameters
+from dampersim.parameters import default_parameters, with_updates
 from dampersim.plotting import discrepancy as diagnosis_plots
 from dampersim.locations import private_dir, repo_root
 from dampersim.views.notices import notice, query_value
@@ -60,8 +60,11 @@ DEFAULT_EXAMPLE = "hidden-effect-example"
 #: Rough cost of the diagnosis [core seconds per second of torsional record], measured
 #: on the bundled example (12 points of 1 s, no ramp: 278 s on 2 idle cores with
 #: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json`` on
-#: commit dd443e3, 1676 model runs).
+#: commit dd443e3, 1676 model runs) with the segment counts of that time,
+#: DIAGNOSIS_MEASURED_SEGMENTS; other counts scale it by a test point's step·DOF.
 DIAGNOSIS_CORE_S_PER_RECORD_S = 46.0
+#: (outer, inner) segment counts of the DIAGNOSIS_CORE_S_PER_RECORD_S measurement
+DIAGNOSIS_MEASURED_SEGMENTS = (18, 8)
 #: Dropdown values of uploads: this prefix and the upload id.
 UPLOAD_PREFIX = "upload:"
 
@@ -280,10 +283,18 @@ def _campaign_summary(folder: str, _files: tuple) -> dict:
     return summarise_campaign(camp)
 
 
-def diagnosis_seconds(record_s: float, cores: int | None = None) -> float:
-    """Rough wall time [s] of diagnosing torsional records of ``record_s`` seconds in all."""
+def diagnosis_seconds(record_s: float, cores: int | None = None, system=None) -> float:
+    """Rough wall time [s] of diagnosing torsional records of ``record_s`` seconds in all
+    with the parameter set ``system`` (default set if None)."""
+    from dampersim import costs
+
     cores = cores or Runner(None).workers
-    return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * float(record_s) / max(1, cores)
+    system = system or default_parameters()
+    measured = with_updates(system, {"solver.outer_segments": DIAGNOSIS_MEASURED_SEGMENTS[0],
+                                     "solver.inner_segments": DIAGNOSIS_MEASURED_SEGMENTS[1]}, check=False)
+    scale = costs.point_cost(system, 1.0, record_segments=False).work / costs.point_cost(
+        measured, 1.0, record_segments=False).work
+    return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * scale * float(record_s) / max(1, cores)
 
 
 def diagnosis_admission(summary: dict, started_by_link: bool) -> tuple:

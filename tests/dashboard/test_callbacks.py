@@ -122,7 +122,7 @@ def test_explorer_outputs_good_state(pages, cache_dir):
 
 
 def test_explorer_control_changes_go_into_the_url(pages, cache_dir):
-    out = pages.explorer.explorer_outputs(*explorer_args(outer=12))
+    out = pages.explorer.explorer_outputs(*explorer_args(outer=12, inner=16))  # inner at its default
     assert "solver.outer_segments=12" in out["search"]
     assert out["params"]["overrides"] == {"solver.outer_segments": 12}
     # a control still showing the link's (rounded) value keeps the exact link value

@@ -81,9 +81,10 @@ def rows(prefix, ks, amps, phs):
     return {f'{{"field":"{f}","row":["ALL"],"type":"{prefix}-order"}}.value': ids(f) for f in ("k", "a", "ph")}
 
 
-def explorer_values(speed=1700, torque=150, duration=SHORT, outer=18):
+def explorer_values(speed=1700, torque=150, duration=SHORT, outer=48):
+    # the default set's values: 48/16 segments, 0.2 kg m^2 primary inertia
     names = ["solver.outer_segments", "solver.inner_segments", "inertias.primary"]
-    vals = [outer, 8, 0.2]
+    vals = [outer, 16, 0.2]
     pid = '{"name":["ALL"],"type":"explorer-param"}'
     v = {
         "explorer-speed.value": speed, "explorer-torque.value": torque, "explorer-duration.value": duration,

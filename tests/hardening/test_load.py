@@ -62,8 +62,8 @@ def test_stopping_the_server_during_sweeps_leaves_no_process(tmp_path):
     monitor.start()
     try:
         # each sweep: 10 points of 20 s simulated time (the longest a link accepts), tens of
-        # seconds of work on two shared cores, within the autostart budget (10 x 9.6e7
-        # step·DOF at the default step against 1.2e9): still running at the stop
+        # seconds of work on two shared cores, within the autostart budget (10 x 2.1e8
+        # step·DOF at the default step and segments against 2.5e9): still running at the stop
         start_sweeps(base, 3, 3, points=10, duration=20.0, deadline_s=600.0, results={})
         t0 = time.monotonic()
         while monitor.jobs_now < 3 and time.monotonic() - t0 < 120:

@@ -420,8 +420,8 @@ def test_degrees_of_freedom_match_the_solver_and_are_capped(monkeypatch):
     for s in sets:
         assert validation.degrees_of_freedom(s) == build_layout(s, 150.0).ndof
     monkeypatch.setattr(validation, "MAX_DEGREES_OF_FREEDOM", 30)
-    with pytest.raises(ParameterError, match=r"solver = '40 degrees of freedom': accepted is at most 30"):
-        validation.validate(sets[0])
+    with pytest.raises(ParameterError, match=r"solver = '86 degrees of freedom': accepted is at most 30"):
+        validation.validate(sets[0])  # 86 with the default 48/16 segments
 
 
 def test_oversize_toml_and_deep_nesting_are_parameter_errors():

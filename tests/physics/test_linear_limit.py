@@ -28,7 +28,10 @@ def test_exported_model_shape_and_modes():
     assert np.allclose(LINEAR.K, LINEAR.K.T) and np.allclose(LINEAR.C, LINEAR.C.T)
 
 
-@pytest.mark.parametrize("freq_hz", [15.0, 40.0, 80.0, 150.0, 220.0, 300.0])
+# 330 Hz, not 300: with the default 48/16 segments a lightly damped mode sits at 298 Hz, and
+# a forced response that close to it has not settled within the 2.6 s run (a 5 s run moves
+# it by 10 %): that would test the run-up, not the integrator
+@pytest.mark.parametrize("freq_hz", [15.0, 40.0, 80.0, 150.0, 220.0, 330.0])
 def test_forced_response_matches_linear_model(freq_hz):
     speed = rpm_to_rad_s(1500)
     order = freq_hz / (1500 / 60)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 import dampersim as ds
+from dampersim.parameters import with_updates
 from dampersim.units import rpm_to_rad_s
 
 #: name -> (speed [rpm], mean torque [N m], orders ((order, amplitude [N m], phase [rad]), ...),
@@ -34,6 +35,16 @@ CASES = {
                             "chaotic stick-slip: order 2 and friction work 2e-3"),
 }
 
+#: the cases run the thesis's 18/8 segments, not the default 48/16: every tolerance above
+#: was measured at these counts, and the kernel's equations are the same at any count
+SEGMENTS = {"solver.outer_segments": 18, "solver.inner_segments": 8}
+
+
+def system():
+    """The parameter set of the cases: the default set at SEGMENTS."""
+    return with_updates(ds.default_parameters(), SEGMENTS)
+
+
 #: only output orders of at least this share of the largest one are compared: the
 #: friction-generated small harmonics (odd orders) are rounding-sensitive everywhere
 SHARE_COMPARED = 0.05
@@ -43,7 +54,7 @@ def run_case(name: str) -> dict:
     """Output order amplitudes 1-8 [N m] and the final energy bookkeeping of one case."""
     rpm, torque, orders, _, _ = CASES[name]
     ex = ds.OrderSum(speed=rpm_to_rad_s(rpm), mean_torque=torque, orders=orders)
-    res = ds.simulate(ds.default_parameters(), ex, record_segments=False)
+    res = ds.simulate(system(), ex, record_segments=False)
     a_in, a_out = res.order_amplitudes()
     return {
         "output_amplitude_nm": [float(x) for x in a_out],
@@ -53,9 +64,9 @@ def run_case(name: str) -> dict:
 
 
 def linear_frequencies() -> list[float]:
-    """The five lowest elastic natural frequencies [Hz] of the linearised default damper
-    on the rig (the rigid-body mode, ~0 Hz up to rounding, is left out)."""
+    """The five lowest elastic natural frequencies [Hz] of the linearised damper (default
+    set at SEGMENTS) on the rig (the rigid-body mode, ~0 Hz up to rounding, is left out)."""
     from dampersim.solver.linear import linearise
 
-    f = linearise(ds.default_parameters()).natural_frequencies_hz()
+    f = linearise(system()).natural_frequencies_hz()
     return [float(x) for x in f[f > 0.1][:5]]
