@@ -43,6 +43,8 @@ MAPPING_NM = (50, 150, 250, 350, 500)
 RAMP_RPM = (1000, 1500, 2000)
 #: segment-count ratio of the synthetic truth to its base (finer, like a real damper) [-]
 FINE_SEGMENTS = 4.0 / 3.0
+#: largest segment count a parameter set accepts (``solver.outer_segments``) [-]
+MAX_SEGMENTS = 200
 RAMP_PROTOCOL = "full-450"  # [thesis] Table 3.1: 0 -> 450 -> -180 -> 0 N m, 50 N m/s, 2 s hold
 #: parameters of [thesis] §6.1 that are estimated rather than measured (perturbed in the truth)
 ESTIMATED = (
@@ -118,6 +120,12 @@ def plan(campaign: str = "all") -> list:
     return pts
 
 
+def fine_segments(n: int) -> int:
+    """Segment count of the synthetic truth for a base count ``n``: a third more, rounded
+    down, at least one more, and at most MAX_SEGMENTS (the parameter's limit)."""
+    return min(MAX_SEGMENTS, max(int(n) + 1, int(int(n) * FINE_SEGMENTS)))
+
+
 def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None, fine: bool = True):
     """The truth model: ``base`` with estimated parameters scaled by 1 + U(-perturb, perturb),
     explicit ``updates`` (dotted name -> value), hidden ``effects`` [(name, values)] and, with
@@ -136,8 +144,8 @@ def truth_system(base, effects=(), perturb: float = 0.0, rng=None, updates=None,
         # rounded down (64/21 against the default 48/16, 24/10 against the thesis's 18/8)
         # and 5e-6 s against the default 1/120 000 s (8.3e-6 s)
         so = base.solver
-        applied.update({"solver.outer_segments": max(so.outer_segments + 1, int(so.outer_segments * FINE_SEGMENTS)),
-                        "solver.inner_segments": max(so.inner_segments + 1, int(so.inner_segments * FINE_SEGMENTS)),
+        applied.update({"solver.outer_segments": fine_segments(so.outer_segments),
+                        "solver.inner_segments": fine_segments(so.inner_segments),
                         "solver.time_step": 5e-6})
     system = with_updates(base, applied)
     for name, values in effects:

@@ -61,10 +61,13 @@ DEFAULT_EXAMPLE = "hidden-effect-example"
 #: on the bundled example (12 points of 1 s, no ramp: 278 s on 2 idle cores with
 #: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json`` on
 #: commit dd443e3, 1676 model runs) with the segment counts of that time,
-#: DIAGNOSIS_MEASURED_SEGMENTS; other counts scale it by a test point's step·DOF.
+#: DIAGNOSIS_MEASURED_SEGMENTS and DIAGNOSIS_MEASURED_STEP; other settings scale it by a
+#: test point's step·DOF.
 DIAGNOSIS_CORE_S_PER_RECORD_S = 46.0
-#: (outer, inner) segment counts of the DIAGNOSIS_CORE_S_PER_RECORD_S measurement
+#: (outer, inner) segment counts and time step [s] of the DIAGNOSIS_CORE_S_PER_RECORD_S
+#: measurement
 DIAGNOSIS_MEASURED_SEGMENTS = (18, 8)
+DIAGNOSIS_MEASURED_STEP = 1.0 / 120000.0
 #: Dropdown values of uploads: this prefix and the upload id.
 UPLOAD_PREFIX = "upload:"
 
@@ -291,7 +294,8 @@ def diagnosis_seconds(record_s: float, cores: int | None = None, system=None) ->
     cores = cores or Runner(None).workers
     system = system or default_parameters()
     measured = with_updates(system, {"solver.outer_segments": DIAGNOSIS_MEASURED_SEGMENTS[0],
-                                     "solver.inner_segments": DIAGNOSIS_MEASURED_SEGMENTS[1]}, check=False)
+                                     "solver.inner_segments": DIAGNOSIS_MEASURED_SEGMENTS[1],
+                                     "solver.time_step": DIAGNOSIS_MEASURED_STEP}, check=False)
     scale = costs.point_cost(system, 1.0, record_segments=False).work / costs.point_cost(
         measured, 1.0, record_segments=False).work
     return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * scale * float(record_s) / max(1, cores)

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from dash import no_update
 
-from dampersim import views
+from dampersim import default_parameters, views
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = 1.2
@@ -102,7 +102,8 @@ def test_bad_link_values_show_a_notice_on_every_page(pages, page, query, expect)
 # ----------------------------------------------------------------------------- explorer
 def explorer_args(speed=1600.0, torque=180.0, orders=((2, 300, 0), (4, 80, 90)), duration=SHORT, params=None, **param_values):
     names = ["solver.outer_segments", "solver.inner_segments"]
-    values = [param_values.get("outer", 18), param_values.get("inner", 8)]
+    sv = default_parameters().solver  # the controls show the default set's counts
+    values = [param_values.get("outer", sv.outer_segments), param_values.get("inner", sv.inner_segments)]
     ks = [o[0] for o in orders] + [None] * (6 - len(orders))
     amps = [o[1] for o in orders] + [None] * (6 - len(orders))
     phs = [o[2] for o in orders] + [None] * (6 - len(orders))
@@ -122,7 +123,7 @@ def test_explorer_outputs_good_state(pages, cache_dir):
 
 
 def test_explorer_control_changes_go_into_the_url(pages, cache_dir):
-    out = pages.explorer.explorer_outputs(*explorer_args(outer=12, inner=16))  # inner at its default
+    out = pages.explorer.explorer_outputs(*explorer_args(outer=12))
     assert "solver.outer_segments=12" in out["search"]
     assert out["params"]["overrides"] == {"solver.outer_segments": 12}
     # a control still showing the link's (rounded) value keeps the exact link value

@@ -154,6 +154,8 @@ def test_colourmap_job_draws_the_band_and_run_0_is_the_plain_sweep(pages, cache_
 
 # ------------------------------------------------------------------------ Explorer page
 def explorer_args(duration=1.0):
+    # the thesis's 18/8 segments: the spread column is what is tested, and the spread check
+    # runs the point several times
     ids = [{"type": "explorer-param", "name": "solver.outer_segments"}, {"type": "explorer-param", "name": "solver.inner_segments"}]
     return (1500.0, 200.0, [2, None, None, None, None, None], [300, None, None, None, None, None],
             [0, None, None, None, None, None], duration, [18, 8], [], "pi", ids, BASE)

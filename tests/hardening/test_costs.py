@@ -95,6 +95,20 @@ def test_sweep_ramp_and_diagnosis_costs_scale_with_their_runs():
     assert d.work == pytest.approx(costs.diagnosis_runs(12, 8) * costs.point_cost(system, 1.0).work + design)
 
 
+def test_the_diagnosis_time_estimate_scales_its_measurement_by_step_dof():
+    # the page's estimate is a measurement at 18/8 segments and 1/120 000 s (278 s for the
+    # bundled example's 12 s of record on 2 cores); other settings scale it by a point's
+    # step·DOF: the default 48/16 by 86/40 DOFs, half the step by two
+    from dampersim.views.discrepancy import DIAGNOSIS_CORE_S_PER_RECORD_S, diagnosis_seconds
+
+    base = 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * 12.0 / 2
+    thesis = with_updates(ds.default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
+    assert diagnosis_seconds(12.0, 2, thesis) == pytest.approx(base)
+    assert diagnosis_seconds(12.0, 2) == pytest.approx(2.0 + (base - 2.0) * 86 / 40)
+    half = with_updates(thesis, {"solver.time_step": thesis.solver.time_step / 2})
+    assert diagnosis_seconds(12.0, 2, half) == pytest.approx(2.0 + (base - 2.0) * 2, rel=1e-6)
+
+
 def test_diagnosis_counts_follow_the_workflow():
     """The run counts are copied from dampersim.discrepancy.diagnose (a package above the
     cost model): a change there must be carried over here."""

@@ -142,7 +142,7 @@ def test_explorer_refuses_points_too_large_to_compute_while_the_browser_waits(pa
     monkeypatch.setenv(costs.BYTES_ENV, str(64 * 2**30))
     no_compute(monkeypatch, E, "explorer_view")
     ks, amps, phs = rows()
-    params = {"set": None, "overrides": {"solver.time_step": 1e-7}}  # 2e8 steps: about 3 minutes of one core
+    params = {"set": None, "overrides": {"solver.time_step": 1e-7}}  # 2e8 steps of 86 DOFs: about 6 minutes of one core
     out, text = bounded(E.explorer_outputs, 1500, 200, ks, amps, phs, 20.0, [], [], "pi", [], params, run=True)
     assert out["error"] and "dampersim simulate" in text
 
@@ -162,7 +162,7 @@ def test_point_above_the_memory_budget_is_refused(pages, monkeypatch, page):
 
 def test_explorer_waits_for_run_above_the_autostart_budget(pages, monkeypatch):
     E = pages.explorer
-    monkeypatch.setenv(costs.AUTOSTART_ENV, "1e6")  # below one 1.2 s point (2.9e6 step·DOF)
+    monkeypatch.setenv(costs.AUTOSTART_ENV, "1e6")  # below one 1.2 s point (1.2e7 step·DOF)
     ks, amps, phs = rows()
     args = (1500, 200, ks, amps, phs, 1.2, [], [], "pi", [], {"set": None, "overrides": {}})
     out = E.explorer_outputs(*args)

@@ -64,7 +64,7 @@ def check_plan_is_the_run(name, counter, system=None):
     return plan
 
 
-# The two cheapest studies on their reduced grids (5 simulations each, about 1 s of one
+# The two cheapest studies on their reduced grids (5 simulations each, about 4 s of one
 # core); additional-orders repeats its dominant-only point (progress 6, simulations 5),
 # so it also checks that a repeated point is counted once, as the sweep computes it once.
 @pytest.mark.parametrize("name", ["order-rule", "additional-orders"])

@@ -154,7 +154,7 @@ def test_diagnose_report_and_out_params_create_parent_folders(fresh, capsys):
     assert main(["synth", "--out", "campaign", "--points", points, "--record", "0.6", "--perturb", "0.03",
                  "--params", "coarse.toml"]) == 0
     capsys.readouterr()
-    args = ["diagnose", "campaign", "--workers", "1", "--json", "--candidates", "turbine_drag,pendulum_absorber",
+    args = ["diagnose", "campaign", "--workers", "2", "--json", "--candidates", "turbine_drag,pendulum_absorber",
             "--no-recommend", "--report", "out/h/report.html", "--out-params", "out/i/augmented.toml",
             "--params", "coarse.toml"]
     assert main([*args[:2], "--candidates", "warp_drive"]) == 2  # refused before any work, with the accepted names

@@ -64,7 +64,9 @@ ORIGINS = {
     "outer.spring.effective_radius": "estimate: coil centre line of the outer set in a ~300 mm converter",
     "outer.spring.friction_radius": "estimate: effective radius plus half the ~30 mm coil diameter (the coils rub "
     "on the outer race)",
-    "outer.spring.active_coils": "estimate: one coil per segment at the thesis's 18 outer segments ([thesis] §6.2.2)",
+    "outer.spring.active_coils": "estimate: one coil per segment at the thesis's 18 outer segments ([thesis] §6.2.2); "
+    "the default 48 segments hold 0.375 coils each, a discretisation of the continuous spring (Eq. 21 takes "
+    "fractional coils per segment; docs/model.md §12)",
     "outer.spring.wire_thickness": "estimate: 5 mm; the block arc (18 x 5 mm / 0.110 m = 47 deg) stays beyond "
     "the hardstop travel, as the hardstops are there to keep the springs off block ([thesis] §5.1)",
     "outer.primary_stopper_half_width": "estimate: 8 deg, leaving a 104 deg slot in the 120 deg pitch",
@@ -84,8 +86,10 @@ ORIGINS = {
     "inner.spring.effective_radius": "estimate: the inner set runs on a smaller radius than the outer set "
     "(0.110 m) of a ~300 mm converter",
     "inner.spring.friction_radius": "estimate: effective radius plus about half the ~24 mm coil diameter",
-    "inner.spring.active_coils": "estimate: about one coil per segment at the 8 inner segments; the thesis "
-    "found accuracy falls once a segment holds less than one coil ([thesis] §6.2.2)",
+    "inner.spring.active_coils": "estimate: about one coil per segment at the thesis's 8 inner segments; the "
+    "thesis found its accuracy against rig data falling once a segment held less than one coil ([thesis] "
+    "§6.2.2). The default 16 segments hold 0.56 coils each: in this model the inner count converges (16, 20 "
+    "and 24 within 0.5 %, docs/model.md §12), the segments discretising the continuous spring",
     "inner.spring.wire_thickness": "estimate: 4 mm; block arc 9 x 4 mm / 0.075 m = 27.5 deg, well below the "
     "45 deg left at the inner hardstop",
     "inner.nested.stiffness": "estimate: the other half of the pair rate ([thesis] §6.1)",
