@@ -24,7 +24,7 @@ import numpy as np
 
 import dampersim as ds
 from dampersim.errors import AccuracyWarning
-from dampersim.parameters import with_updates
+from dampersim.parameters import at_thesis_segments, with_updates
 from dampersim.simulation import ensure_compiled
 from dampersim.solver.kernels.forces import rhs
 from dampersim.signal import order_amplitudes
@@ -105,7 +105,7 @@ def main():
           f"{lay.ndof} DOFs, {len(lay.contacts_idx)} friction contacts, {steps} steps")
     print(f"wall time per test point: best {best:.3f} s, median {median:.3f} s")
     print(f"ns per DOF-step: {best / (steps * lay.ndof) * 1e9:.1f}")
-    thesis = with_updates(system, {"solver.outer_segments": 18, "solver.inner_segments": 8})
+    thesis = at_thesis_segments(system)
     best18, median18, _ = timed_point(thesis)
     steps_dof18 = steps * build_layout(thesis, SPEED).ndof
     print(f"the same point with the thesis's 18/8 segments (the default until the segment grid; the speed "

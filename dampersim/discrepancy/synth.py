@@ -31,7 +31,7 @@ from dampersim.errors import InputError
 from dampersim.units import rpm_to_rad_s
 from dampersim.excitation import default_torque_curve, ramp_protocol
 from dampersim.fileio import write_text_atomic
-from dampersim.parameters import default_parameters, to_dict, with_updates
+from dampersim.parameters import Solver, default_parameters, to_dict, with_updates
 from dampersim.parameters.io import flat_values
 from dampersim.simulation import simulate
 from dampersim.sweeps.backends import process_pool
@@ -43,8 +43,8 @@ MAPPING_NM = (50, 150, 250, 350, 500)
 RAMP_RPM = (1000, 1500, 2000)
 #: segment-count ratio of the synthetic truth to its base (finer, like a real damper) [-]
 FINE_SEGMENTS = 4.0 / 3.0
-#: largest segment count a parameter set accepts (``solver.outer_segments``) [-]
-MAX_SEGMENTS = 200
+#: largest segment count a parameter set accepts (``solver.outer_segments``'s bound) [-]
+MAX_SEGMENTS = next(f.metadata["hi"] for f in dataclasses.fields(Solver) if f.name == "outer_segments")
 RAMP_PROTOCOL = "full-450"  # [thesis] Table 3.1: 0 -> 450 -> -180 -> 0 N m, 50 N m/s, 2 s hold
 #: parameters of [thesis] §6.1 that are estimated rather than measured (perturbed in the truth)
 ESTIMATED = (

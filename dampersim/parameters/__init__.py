@@ -28,6 +28,10 @@ from dampersim.parameters.validation import validate
 from dampersim.parameters.sets import DEFAULT_SET, SETS
 from dampersim.errors import ParameterError
 
+#: the thesis's own discretisation ([thesis] §6.2.2): 18 outer and 8 inner segments, the
+#: default until the accuracy grid chose 48/16 (docs/model.md §12)
+THESIS_SEGMENTS = {"solver.outer_segments": 18, "solver.inner_segments": 8}
+
 
 def default_parameters(name: str = DEFAULT_SET) -> DamperSystem:
     """The named parameter set (default: the thesis's turbine damper on the test rig)."""
@@ -35,6 +39,12 @@ def default_parameters(name: str = DEFAULT_SET) -> DamperSystem:
     if name not in SETS:
         raise ParameterError("parameter set", name, f"one of {sorted(SETS)}")
     return SETS[name]()
+
+
+def at_thesis_segments(system: DamperSystem | None = None) -> DamperSystem:
+    """``system`` (the default set if None) with the thesis's segment counts, THESIS_SEGMENTS."""
+
+    return with_updates(system or default_parameters(), THESIS_SEGMENTS)
 
 
 def load_parameters(path=None, updates=None) -> DamperSystem:
@@ -50,5 +60,5 @@ __all__ = [
     "ArcSpring", "DamperSystem", "Friction", "Hardstops", "Inertias", "OutputMotor", "Rig",
     "RigElement", "Solver", "SpringFriction", "SpringSet", "dotted_names", "dumps_toml",
     "load_toml", "loads_toml", "parse_set_options", "save_toml", "system_from_dict", "to_dict",
-    "with_updates", "validate", "default_parameters", "load_parameters", "DEFAULT_SET", "SETS",
+    "with_updates", "validate", "default_parameters", "load_parameters", "DEFAULT_SET", "SETS", "THESIS_SEGMENTS", "at_thesis_segments",
 ]

@@ -40,7 +40,7 @@ from dampersim.discrepancy.report import (
 )
 from dampersim.discrepancy.upload import CAMPAIGN_ACCEPTED, UPLOAD_ID, UPLOAD_LIMITS
 from dampersim.errors import InputError
-from dampersim.parameters import default_parameters, with_updates
+from dampersim.parameters import THESIS_SEGMENTS, default_parameters, with_updates
 from dampersim.plotting import discrepancy as diagnosis_plots
 from dampersim.locations import private_dir, repo_root
 from dampersim.views.notices import notice, query_value
@@ -60,14 +60,12 @@ DEFAULT_EXAMPLE = "hidden-effect-example"
 #: Rough cost of the diagnosis [core seconds per second of torsional record], measured
 #: on the bundled example (12 points of 1 s, no ramp: 278 s on 2 idle cores with
 #: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json`` on
-#: commit dd443e3, 1676 model runs) with the segment counts of that time,
-#: DIAGNOSIS_MEASURED_SEGMENTS and DIAGNOSIS_MEASURED_STEP; other settings scale it by a
-#: test point's step·DOF.
+#: commit dd443e3, 1676 model runs) with the solver settings of that time,
+#: DIAGNOSIS_MEASURED; other settings scale it by a test point's step·DOF.
 DIAGNOSIS_CORE_S_PER_RECORD_S = 46.0
-#: (outer, inner) segment counts and time step [s] of the DIAGNOSIS_CORE_S_PER_RECORD_S
-#: measurement
-DIAGNOSIS_MEASURED_SEGMENTS = (18, 8)
-DIAGNOSIS_MEASURED_STEP = 1.0 / 120000.0
+#: solver settings of the DIAGNOSIS_CORE_S_PER_RECORD_S measurement: the thesis's segment
+#: counts (the default then) and the 1/120 000 s step [s]
+DIAGNOSIS_MEASURED = {**THESIS_SEGMENTS, "solver.time_step": 1.0 / 120000.0}
 #: Dropdown values of uploads: this prefix and the upload id.
 UPLOAD_PREFIX = "upload:"
 
@@ -293,9 +291,7 @@ def diagnosis_seconds(record_s: float, cores: int | None = None, system=None) ->
 
     cores = cores or Runner(None).workers
     system = system or default_parameters()
-    measured = with_updates(system, {"solver.outer_segments": DIAGNOSIS_MEASURED_SEGMENTS[0],
-                                     "solver.inner_segments": DIAGNOSIS_MEASURED_SEGMENTS[1],
-                                     "solver.time_step": DIAGNOSIS_MEASURED_STEP}, check=False)
+    measured = with_updates(system, DIAGNOSIS_MEASURED, check=False)
     scale = costs.point_cost(system, 1.0, record_segments=False).work / costs.point_cost(
         measured, 1.0, record_segments=False).work
     return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * scale * float(record_s) / max(1, cores)

@@ -26,15 +26,14 @@ import pytest
 from dash import no_update
 
 import app  # noqa: F401  (registers the pages)
-from dampersim import default_parameters, views
-from dampersim.parameters import with_updates
+from dampersim import views
+from dampersim.parameters import at_thesis_segments
 from dampersim.discrepancy import report
 from pages import discrepancy as D
 from tests.dashboard.test_http import DashClient
 from tests.dashboard.test_callbacks import find
 
 EXAMPLE = "hidden-effect-example"
-THESIS_SEGMENTS = with_updates(default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
 TINY_POINTS = ["map_900_150", "map_1500_150", "map_2000_50"]  # the fewest points diagnose() accepts (3)
 TINY_OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibration_iterations": 1, "shortlist": 1,
                 "recommend": False}  # the next-test design (75 runs) is tested in tests/discrepancy
@@ -75,7 +74,7 @@ def tiny(tmp_path_factory):
         # page diagnoses it with the default set, and these tests check the page, not the
         # diagnosis's figures
         synthesize(folder, effects=[("pendulum_absorber", {"inertia": 0.002})], perturb=0.03, seed=3,
-                   points=TINY_POINTS, record=0.6, base=THESIS_SEGMENTS)
+                   points=TINY_POINTS, record=0.6, base=at_thesis_segments())
         contents = zip_upload(folder_files(folder, "tiny-campaign/"))
         options, value, notices = D.upload(contents, "tiny.zip", [])
         out = D.request(True, False, [value], None, False)

@@ -10,13 +10,12 @@ from dampersim import OrderSum, default_parameters, simulate
 from dampersim.discrepancy.effects import NAMES, catalogue, parse_effect_spec, with_effect
 from dampersim.errors import InputError
 from dampersim.excitation import TorqueRamp
-from dampersim.parameters import dumps_toml, loads_toml, with_updates
+from dampersim.parameters import at_thesis_segments, dumps_toml, loads_toml, with_updates
 from dampersim.units import rpm_to_rad_s
 
 # a coarse step and the thesis's 18/8 segments for speed: each effect's direction is what
 # is tested, not the accuracy (4e-5 s is below the stability bound at these counts, 7.8e-5 s)
-BASE = with_updates(default_parameters(), {"solver.time_step": 4e-5, "solver.outer_segments": 18,
-                                           "solver.inner_segments": 8})
+BASE = with_updates(at_thesis_segments(), {"solver.time_step": 4e-5})
 
 
 def _run(system, rpm, mean, orders=((2, 300.0, 0.0), (4, 80.0, 0.5))):

@@ -18,7 +18,7 @@ from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import NAMES
 from dampersim.discrepancy.synth import synthesize
-from dampersim.parameters import default_parameters, with_updates
+from dampersim.parameters import at_thesis_segments
 
 POINTS = ["map_900_150", "map_1200_250", "map_1500_150", "map_1800_350", "map_2000_50", "map_1200_500",
           "map_1500_350", "map_1800_150", "map_900_350"]
@@ -28,7 +28,7 @@ TRUE_INERTIA = 0.002  # [kg m^2] the library's strong absorber
 
 #: the diagnosed model at the thesis's 18/8 segments (the truth then has 24/10): the method
 #: is what is tested, and these counts halve the run time against the default 48/16
-BASE = with_updates(default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
+BASE = at_thesis_segments()
 
 
 def _diagnosis(tmp_path_factory, name, effects, daq=None):

@@ -97,12 +97,11 @@ def test_cli_bad_input_exits_2(tmp_path, capsys):
 def test_the_synthetic_truth_is_finer_than_its_base():
     # a third more segments, rounded down, at least one more, within the parameter's limit
     from dampersim.discrepancy.synth import fine_segments, truth_system
-    from dampersim.parameters import default_parameters, with_updates
+    from dampersim.parameters import at_thesis_segments, default_parameters
 
     assert [fine_segments(n) for n in (4, 8, 16, 18, 48, 150, 199, 200)] == [5, 10, 21, 24, 64, 200, 200, 200]
     truth, applied = truth_system(default_parameters(), perturb=0.0)
     assert (truth.solver.outer_segments, truth.solver.inner_segments) == (64, 21)  # default 48/16
-    thesis = with_updates(default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
-    truth, _ = truth_system(thesis, perturb=0.0)
+    truth, _ = truth_system(at_thesis_segments(), perturb=0.0)
     assert (truth.solver.outer_segments, truth.solver.inner_segments) == (24, 10)
     assert truth.solver.time_step < default_parameters().solver.time_step

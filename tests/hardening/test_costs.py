@@ -11,7 +11,7 @@ import pytest
 import dampersim as ds
 from dampersim import costs
 from dampersim.errors import InputError
-from dampersim.parameters import with_updates
+from dampersim.parameters import at_thesis_segments, with_updates
 from dampersim.solver.layout import build_layout
 from dampersim.units import rpm_to_rad_s
 
@@ -59,7 +59,7 @@ def test_work_and_the_issues_link():
     default = ds.default_parameters()
     # the thesis's 18/8 segments (40 DOFs), at which the issue stated its figures; the
     # default 48/16 segments cost their layout's DOFs per step
-    system = with_updates(default, {"solver.outer_segments": 18, "solver.inner_segments": 8})
+    system = at_thesis_segments(default)
     c = costs.point_cost(system, 2.6)
     assert c.work == round(2.6 / system.solver.time_step) * 40
     steps = round(2.6 / default.solver.time_step)
@@ -102,7 +102,7 @@ def test_the_diagnosis_time_estimate_scales_its_measurement_by_step_dof():
     from dampersim.views.discrepancy import DIAGNOSIS_CORE_S_PER_RECORD_S, diagnosis_seconds
 
     base = 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * 12.0 / 2
-    thesis = with_updates(ds.default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
+    thesis = at_thesis_segments()
     assert diagnosis_seconds(12.0, 2, thesis) == pytest.approx(base)
     assert diagnosis_seconds(12.0, 2) == pytest.approx(2.0 + (base - 2.0) * 86 / 40)
     half = with_updates(thesis, {"solver.time_step": thesis.solver.time_step / 2})

@@ -15,7 +15,7 @@ import pytest
 
 import dampersim as ds
 from dampersim.errors import AccuracyWarning
-from dampersim.parameters import with_updates
+from dampersim.parameters import at_thesis_segments, with_updates
 from dampersim.units import rpm_to_rad_s
 
 POINT = ds.OrderSum(speed=rpm_to_rad_s(2500), mean_torque=100.0, orders=((2, 300.0, 0.0),))
@@ -44,7 +44,7 @@ def test_previous_default_step_fails_it():
     # the criterion has teeth here: with the thesis's 18/8 segments, on which the step was
     # chosen, the 6th order misses it at 1/60 000 s (3 %) and meets it at the default step.
     # With the default 48/16 segments both steps meet it at this point (docs/model.md §12)
-    thesis = with_updates(ds.default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
+    thesis = at_thesis_segments()
     ref = outputs(with_updates(thesis, {"solver.time_step": 1e-6}))
     assert abs(outputs(thesis)[5] / ref[5] - 1.0) < 0.01
     with warnings.catch_warnings():

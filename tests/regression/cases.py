@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 import dampersim as ds
-from dampersim.parameters import with_updates
+from dampersim.parameters import at_thesis_segments
 from dampersim.units import rpm_to_rad_s
 
 #: name -> (speed [rpm], mean torque [N m], orders ((order, amplitude [N m], phase [rad]), ...),
@@ -37,12 +37,9 @@ CASES = {
 
 #: the cases run the thesis's 18/8 segments, not the default 48/16: every tolerance above
 #: was measured at these counts, and the kernel's equations are the same at any count
-SEGMENTS = {"solver.outer_segments": 18, "solver.inner_segments": 8}
-
-
 def system():
-    """The parameter set of the cases: the default set at SEGMENTS."""
-    return with_updates(ds.default_parameters(), SEGMENTS)
+    """The parameter set of the cases: the default set at the thesis's segment counts."""
+    return at_thesis_segments()
 
 
 #: only output orders of at least this share of the largest one are compared: the
@@ -65,7 +62,7 @@ def run_case(name: str) -> dict:
 
 def linear_frequencies() -> list[float]:
     """The five lowest elastic natural frequencies [Hz] of the linearised damper (default
-    set at SEGMENTS) on the rig (the rigid-body mode, ~0 Hz up to rounding, is left out)."""
+    set at the thesis's segment counts) on the rig (the rigid-body mode, ~0 Hz up to rounding, is left out)."""
     from dampersim.solver.linear import linearise
 
     f = linearise(system()).natural_frequencies_hz()

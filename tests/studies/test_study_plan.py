@@ -17,10 +17,10 @@ import time
 import pytest
 
 import dampersim.simulation.damper as damper
-from dampersim.parameters import default_parameters, with_updates
+from dampersim.parameters import at_thesis_segments
 from dampersim.studies import STUDIES, run_study, study_cost, study_plan
 
-THESIS_SEGMENTS = with_updates(default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8})
+THESIS_SEGMENTS = at_thesis_segments()
 
 
 class KernelCounter:

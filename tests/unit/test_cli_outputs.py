@@ -144,12 +144,11 @@ def test_file_output_at_a_folder_or_below_a_file_is_one_line_exit_2(fresh, capsy
 
 @pytest.mark.slow
 def test_diagnose_report_and_out_params_create_parent_folders(fresh, capsys):
-    from dampersim.parameters import default_parameters, save_toml, with_updates
+    from dampersim.parameters import at_thesis_segments, save_toml
 
     # the thesis's 18/8 segments through --params: the folders are what is tested, and these
     # counts halve the diagnosis's run time against the default 48/16
-    save_toml(with_updates(default_parameters(), {"solver.outer_segments": 18, "solver.inner_segments": 8}),
-              "coarse.toml")
+    save_toml(at_thesis_segments(), "coarse.toml")
     points = "map_900_150,map_1200_250,map_1500_150"
     assert main(["synth", "--out", "campaign", "--points", points, "--record", "0.6", "--perturb", "0.03",
                  "--params", "coarse.toml"]) == 0
