@@ -7,7 +7,8 @@ fitted, robust loss). The calibration (six log scale factors under a prior) and 
 candidate model are fitted on the training points; the models ("none", each effect,
 pairs) are weighed by Laplace evidence (:mod:`dampersim.discrepancy.selection`); the
 verdict asks whether the most probable model brings the misfit on held-out points (every
-third torsional point, never fitted) to the noise level. A failed model run is never a
+third torsional point, never fitted) to the noise level, and adopts an effect only when its
+posterior is decisive (:func:`decide`). A failed model run is never a
 match: its point is left out (listed under ``problems``), its trial rejected, its candidate
 not ranked. A campaign that cannot be diagnosed gets the verdict ``insufficient_data``.
 """
@@ -48,6 +49,25 @@ def noise_level(dof: int) -> float:
     from scipy.stats import chi2
 
     return max(CHI2_NOISE, float(chi2.ppf(0.99, max(1, dof)) / max(1, dof)))
+
+
+def decide(top: str, posterior: float, chi_top: float, chi_none: float, level: float) -> str:
+    """The verdict from the most probable model ``top`` (its posterior and held-out robust
+    reduced chi^2 ``chi_top``), the calibrated model's ``chi_none`` and the noise level.
+
+    An effect is adopted ("missing_effect") only when it is decisive (posterior at least
+    DETECTION_POSTERIOR, the threshold the detectability estimate is read against) and
+    brings the held-out misfit to the noise level. An effect that is more probable than
+    "none" but not decisive is not adopted: when the calibrated model already predicts
+    the held-out points at the noise level the verdict is "no_missing_effect", otherwise
+    "unexplained" (the message gives the candidate and its posterior)."""
+    if top == "none":
+        return "no_missing_effect" if chi_top <= level else "unexplained"
+    if posterior >= selection.DETECTION_POSTERIOR and chi_top <= level:
+        return "missing_effect"
+    if posterior < selection.DETECTION_POSTERIOR and chi_none <= level:
+        return "no_missing_effect"
+    return "unexplained"
 
 
 def diagnose(campaign, system=None, workers: int | None = None, progress=None, candidates=None,
@@ -195,14 +215,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
 
         for j, name in enumerate(shortlisted):
             report(0.56 + 0.2 * j / len(shortlisted), f"name: fitting {name}")
-            pref = screen[name]["start"]
-            tried = [pref] + [s for s in starts if s != pref]
-            fits = [f for f in (namer.fit(name, s) for s in tried) if f is not None]
+            fits = namer.fit_candidate(name, screen[name])
             if not fits:
                 unfitted[name] = (f"not ranked: the model runs with {name} failed at every magnitude tried "
                                   f"({drive.failed_text(failures.get(name, {}))})")
                 continue
-            fit = namer.fit_shapes(name, min(fits, key=lambda f: f["cost"]))
+            fit = namer.fit_shapes(name, fits[0])
             fit["effects"] = [name]
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
@@ -269,10 +287,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the verdict's misfit is robust: one bad held-out point cannot decide it alone
         chi = {m: lik.robust_reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
         chi_plain = {m: lik.reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
-        if chi[top] <= level:
-            verdict = "no_missing_effect" if top == "none" else "missing_effect"
-        else:
-            verdict = "unexplained"
+        verdict = decide(top, post.get(top, 0.0), chi[top], chi["none"], level)
         # detectability of every candidate (two more magnitudes each, from the calibrated start)
         detect = {}
 
@@ -541,7 +556,7 @@ def _recommend(runner, models, post, detect, cands, pts, lik, campaign) -> list:
     return design.recommend(runner, systems, contrasts, pts, sigma, amp, bool(campaign.ramps), hidden)
 
 
-__all__ = ["CALIBRATION", "INSUFFICIENT", "MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE",
+__all__ = ["CALIBRATION", "INSUFFICIENT", "decide", "MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE",
            "Diagnosis", "diagnose", "locate", "calibrated_system", "shortfall", "speeds_of", "noise_level",
            "CAL_BOUND", "CAL_SCAN", "CAL_STEP_FRACTIONS", "COARSE_SEGMENTS", "PRIOR_LOG_SD", "REFINE_EVALUATIONS",
            "_effect_grid", "_lstsq_bounded", "_resid", "with_effect"]

@@ -34,6 +34,9 @@ SHAPES = {
     "clutch_slip": ("slip_speed", "viscous"),
     "inner_short_springs": ("clearance",),
 }
+#: a candidate's second start is fitted too when its screen evidence is within this many
+#: nats of the preferred start's (e^3 = 20: the linear screen may misjudge closer calls)
+SECOND_START_NATS = 3.0
 #: smallest screen scale (fitted magnitude / typical magnitude) for a candidate to be fitted
 MIN_SCREEN_SCALE = 0.05
 
@@ -74,9 +77,10 @@ class Namer:
         from each start (scale at least MIN_SCREEN_SCALE: an effect cannot act backwards).
         Keeps the start whose joint model has the higher evidence: {start, scale,
         rel_log_evidence (against the better of the starts' "none" evidences), cost, y,
-        parts (each start's standardised residual, signature or None, factors)}."""
+        parts (each start's standardised residual, signature or None, factors), start_z
+        (each start's linear log evidence, -inf where its run failed)}."""
         e = info(name)
-        best, parts = None, []
+        best, parts, start_z = None, [], {}
         for start, (s0, x0, y_s) in self.starts.items():
             ye, failed = self.runs(with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), name)
             with self.lik.using(self.lik.profile(y_s, self.train)[1]):  # this start's own nuisance
@@ -89,10 +93,11 @@ class Namer:
                 z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
                                                                min_scale=MIN_SCREEN_SCALE)
                 cand = {"start": start, "scale": sc, "z": z, "cost": c, "y": ye}
+            start_z[start] = cand["z"]
             if best is None or cand["z"] > best["z"]:
                 best = cand
         best.pop("z")
-        best["parts"] = parts
+        best["parts"], best["start_z"] = parts, start_z
         best["rel_log_evidence"] = self.screen_evidence(best, 1.0)
         return best
 
@@ -117,6 +122,20 @@ class Namer:
     def _magnitude_prior(self, name, m) -> float:
         e = info(name)
         return ((math.log(m) - math.log(e.magnitudes[1])) / selection.MAGNITUDE_PRIOR_SD) ** 2
+
+    def fit_candidate(self, name, screened):
+        """Fit effect ``name`` from the start its screen preferred; the other start is fitted
+        too when the preferred fit failed or when the screen could not tell the starts apart
+        (their linear evidences within SECOND_START_NATS: the linearisation may rank them
+        wrongly). The fits that succeeded, best first by cost (may be empty)."""
+        pref = screened["start"]
+        zs = screened.get("start_z", {})
+        fits = [f for f in [self.fit(name, pref)] if f is not None]
+        for other in (s for s in self.starts if s != pref):
+            close = math.isfinite(zs.get(other, -math.inf)) and zs[other] >= zs.get(pref, math.inf) - SECOND_START_NATS
+            if not fits or close:
+                fits += [f for f in [self.fit(name, other)] if f is not None]
+        return sorted(fits, key=lambda f: f["cost"])
 
     def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None):
         """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple
@@ -345,4 +364,4 @@ def _clip(v, meta) -> float:
     return float(v)
 
 
-__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "FD_STEP", "Namer", "clip_magnitude", "fd_magnitude"]
+__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "SECOND_START_NATS", "FD_STEP", "Namer", "clip_magnitude", "fd_magnitude"]

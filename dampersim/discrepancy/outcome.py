@@ -10,6 +10,7 @@ import numpy as np
 
 from dampersim.discrepancy.effects import NAMES
 from dampersim.discrepancy.fitting import _rms
+from dampersim.discrepancy.selection import DETECTION_POSTERIOR
 
 #: fewest valid torsional test points a diagnosis accepts (every third is held out)
 MIN_TORSIONAL_POINTS = 3
@@ -144,9 +145,18 @@ def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
         text = (f"{top.replace('+', ' and ')} (posterior {p:.2f}) brings the held-out misfit from reduced chi^2 "
                 f"{chi_cal:.3g} to {chi_top:.3g}, within the noise level {level:.3g} ({gaps}, {diag.gap_after_nm:.3g} "
                 "N m with the effect)")
-    elif diag.verdict == "no_missing_effect":
+    elif diag.verdict == "no_missing_effect" and top == "none":
         text = (f"no missing effect is the most probable model (posterior {p:.2f}) and the calibrated model's "
                 f"held-out misfit is at the noise level (reduced chi^2 {chi_cal:.3g} against {level:.3g}; {gaps})")
+    elif diag.verdict == "no_missing_effect":
+        text = (f"no missing effect is adopted: {top.replace('+', ' and ')} is the most probable model but not "
+                f"decisive (posterior {p:.2f}, {DETECTION_POSTERIOR:.2f} needed), and the calibrated model's held-out "
+                f"misfit is already at the noise level (reduced chi^2 {chi_cal:.3g} against {level:.3g}; {gaps})")
+    elif top != "none" and p < DETECTION_POSTERIOR and chi_top <= level:
+        text = (f"the most probable model ({top}, posterior {p:.2f}) brings the held-out misfit to the noise level "
+                f"(reduced chi^2 {chi_cal:.3g} calibrated, {chi_top:.3g} with it, against {level:.3g}; {gaps}) but is "
+                f"not decisive ({DETECTION_POSTERIOR:.2f} needed), and the calibrated model alone stays above the "
+                "noise level: not adopted")
     else:
         text = (f"the most probable model ({top}, posterior {p:.2f}) leaves a held-out misfit above the noise level "
                 f"(reduced chi^2 {chi_top:.3g} against {level:.3g}; {gaps}): no candidate explains the data")
