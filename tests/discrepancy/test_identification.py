@@ -70,6 +70,9 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     # effect, and the adopted effect is the absorber whenever the verdict is "missing_effect"
     assert d.verdict in ("missing_effect", "unexplained")
     assert d.effect in (None, "pendulum_absorber") and (d.verdict == "unexplained") == (d.effect is None)
+    # each candidate is fitted from one start when its screen is clear: 684 runs on commit
+    # 19acb87 against 876 when both starts were fitted (docs/discrepancy.md, Known limits)
+    assert d.simulations <= 700
 
 
 @pytest.mark.slow
