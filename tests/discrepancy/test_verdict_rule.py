@@ -32,3 +32,21 @@ def test_the_adoption_threshold_is_the_detection_posterior():
     just = DETECTION_POSTERIOR
     assert decide("turbine_drag", just, 1.0, 3.0, LEVEL) == "missing_effect"
     assert decide("turbine_drag", just - 1e-9, 1.0, 3.0, LEVEL) == "unexplained"
+
+
+@pytest.mark.parametrize("verdict, top, post, chi_top, chi_cal, words", [
+    ("no_missing_effect", "transducer_bandwidth", 0.87, 1.00, 1.14, ["not decisive", "posterior 0.87", "0.90 needed"]),
+    ("unexplained", "clutch_slip", 0.80, 1.2, 4.0, ["not decisive", "not adopted", "posterior 0.80"]),
+    ("no_missing_effect", "none", 0.97, 1.0, 1.0, ["no missing effect is the most probable model"]),
+])
+def test_the_message_says_why_an_effect_was_not_adopted(verdict, top, post, chi_top, chi_cal, words):
+    from types import SimpleNamespace
+
+    from dampersim.discrepancy.outcome import _verdict_message
+
+    diag = SimpleNamespace(verdict=verdict, posterior={top: post}, gap_calibrated_nm=0.5, gap_after_nm=0.4,
+                           outliers=[], ranking=[],
+                           likelihood={"model": top, "reduced_chi2_held_out": chi_top,
+                                       "reduced_chi2_held_out_calibrated": chi_cal})
+    text = _verdict_message(diag, [], LEVEL)
+    assert all(w in text for w in words), text
