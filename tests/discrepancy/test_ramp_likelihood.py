@@ -105,3 +105,17 @@ def test_correlated_ramp_samples_count_as_fewer_independent_ones():
     assert 1.0 / 50 <= effective_share(np.linspace(0.0, 1.0, 50), [50]) < 0.05
     # a smooth half wave in each of two ramps: about one sample per ramp, never fewer
     assert 2.0 / 200 <= effective_share(np.tile(np.cos(np.linspace(0.0, np.pi, 100)), 2), [100, 100]) < 0.011
+
+
+def test_the_ramp_noise_is_read_off_the_best_ramp_prediction():
+    """The detectability of a ramp effect is read against the uncertainty scale of the model
+    that predicts the ramps best, not that of "none": with a free play in the data, "none"
+    fits a scale inflated by the free play's own misfit, and the present effect would read
+    undetectable (as benchmark case effect/output_backlash/strong/s0 did)."""
+    import math
+
+    from dampersim.discrepancy.diagnose import ramp_reference
+
+    assert ramp_reference({"none": -120.0, "output_backlash": -40.0, "clutch_slip": -118.0}) == "output_backlash"
+    assert ramp_reference({"none": -10.0, "output_backlash": -math.inf}) == "none"
+    assert ramp_reference({"none": -math.inf, "turbine_drag": -math.inf}) == "none"
