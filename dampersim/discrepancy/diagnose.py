@@ -30,7 +30,8 @@ from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIO
 from dampersim.discrepancy.likelihood import Likelihood, cell_sigma, measured_coefficients, split_half_sigma
 from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
-                                           Diagnosis, _not_diagnosed, _verdict_message, locate, shortfall, speeds_of)
+                                           Diagnosis, _not_diagnosed, _verdict_message, decide, locate, shortfall,
+                                           speeds_of)
 from dampersim.discrepancy.tracking import point_orders
 from dampersim.parameters import default_parameters
 
@@ -49,25 +50,6 @@ def noise_level(dof: int) -> float:
     from scipy.stats import chi2
 
     return max(CHI2_NOISE, float(chi2.ppf(0.99, max(1, dof)) / max(1, dof)))
-
-
-def decide(top: str, posterior: float, chi_top: float, chi_none: float, level: float) -> str:
-    """The verdict from the most probable model ``top`` (its posterior and held-out robust
-    reduced chi^2 ``chi_top``), the calibrated model's ``chi_none`` and the noise level.
-
-    An effect is adopted ("missing_effect") only when it is decisive (posterior at least
-    DETECTION_POSTERIOR, the threshold the detectability estimate is read against) and
-    brings the held-out misfit to the noise level. An effect that is more probable than
-    "none" but not decisive is not adopted: when the calibrated model already predicts
-    the held-out points at the noise level the verdict is "no_missing_effect", otherwise
-    "unexplained" (the message gives the candidate and its posterior)."""
-    if top == "none":
-        return "no_missing_effect" if chi_top <= level else "unexplained"
-    if posterior >= selection.DETECTION_POSTERIOR and chi_top <= level:
-        return "missing_effect"
-    if posterior < selection.DETECTION_POSTERIOR and chi_none <= level:
-        return "no_missing_effect"
-    return "unexplained"
 
 
 def diagnose(campaign, system=None, workers: int | None = None, progress=None, candidates=None,
@@ -262,15 +244,20 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         if campaign.ramps:
             report(0.8, "ramps: windup of every fitted model and its sensitivities")
             ramp_lik, ramp_runs, ramp_ll, chi_r = _ramp_evidence(runner, system, x, jac, namer, models, campaign.ramps)
+        # a fitted model that predicts the held-out points worse than "none" is penalised by
+        # the difference (held_out_penalty); one that predicts them better gains nothing,
+        # since an effect can imitate the model's own systematic error there as on the
+        # training points (docs/discrepancy.md, Naming)
+        penalty = selection.held_out_penalty(lik, models, held, eta)
         # posterior over all models: fitted models by their Laplace evidence, the others by
         # the linear screen's evidence relative to "none" (exact for a linear signature;
         # their ramps are taken as those of "none")
         log_z = {"none": z_none + ramp_ll.get("none", 0.0)}
         for name in cands:
-            log_z[name] = (models[name]["log_z"] + ramp_ll.get(name, 0.0) if name in models
+            log_z[name] = (models[name]["log_z"] + ramp_ll.get(name, 0.0) + penalty.get(name, 0.0) if name in models
                            else log_z["none"] + namer.screen_evidence(screen[name], eta))
         for label in pairs:
-            log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0)
+            log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0) + penalty.get(label, 0.0)
         for label, fit in models.items():  # a model whose held-out run failed is no match: no evidence
             if fit["yh"] is None:
                 log_z[label] = -math.inf
@@ -367,6 +354,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "nuisance": {"output_gain": math.exp(final["nuisance"][0]),
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
+                    "held_out_penalty": penalty,
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_noise_scale": ramp_lik.scales.get(top) if ramp_lik is not None else None,
@@ -428,25 +416,13 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
         scales[label], whitened[label] = lik_r.scale, lik_r.whitened
     # the samples' effective share from the model that explains the ramps best (its residual
     # is the least systematic); it scales every model's log likelihood from here on
-    best = ramp_reference(ll)
+    best = ramps_lik.ramp_reference(ll)
     if whitened.get(best) is not None and math.isfinite(ll[best]):
         lik_r.fraction = ramps_lik.effective_share(whitened[best], lik_r.lengths())
         ll = {m: v * lik_r.fraction for m, v in ll.items()}
     lik_r.scales, lik_r.cols_x = scales, cols_x
     lik_r.noise_scale = scales[best] if math.isfinite(ll[best]) else scales["none"]
     return lik_r, runs, ll, chi
-
-
-def ramp_reference(ll: dict) -> str:
-    """The model whose ramp prediction is best (highest log likelihood; "none" when every
-    model failed): the ramps' noise is read off its residual. Its uncertainty scale is the
-    one detectability thresholds are read against, since the scale "none" fits
-    to a campaign with a free play grows with that free play's own misfit, and would
-    make the effect present in the data look undetectable (benchmark case
-    effect/output_backlash/strong/s0 on commit 19acb87: named with posterior 0.999 but
-    detectability null)."""
-    finite = {m: v for m, v in ll.items() if math.isfinite(v)}
-    return max(finite, key=lambda m: finite[m]) if finite else "none"
 
 
 def _size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, cols_x, points):

@@ -132,6 +132,25 @@ def _not_diagnosed(system, missing, message, problems, simulations, t0) -> Diagn
                      detectability=dict.fromkeys(NAMES))
 
 
+def decide(top: str, posterior: float, chi_top: float, chi_none: float, level: float) -> str:
+    """The verdict from the most probable model ``top`` (its posterior and held-out robust
+    reduced chi^2 ``chi_top``), the calibrated model's ``chi_none`` and the noise level.
+
+    An effect is adopted ("missing_effect") only when it is decisive (posterior at least
+    DETECTION_POSTERIOR, the threshold the detectability estimate is read against) and
+    brings the held-out misfit to the noise level. An effect that is more probable than
+    "none" but not decisive is not adopted: when the calibrated model already predicts
+    the held-out points at the noise level the verdict is "no_missing_effect", otherwise
+    "unexplained" (the message gives the candidate and its posterior)."""
+    if top == "none":
+        return "no_missing_effect" if chi_top <= level else "unexplained"
+    if posterior >= DETECTION_POSTERIOR and chi_top <= level:
+        return "missing_effect"
+    if posterior < DETECTION_POSTERIOR and chi_none <= level:
+        return "no_missing_effect"
+    return "unexplained"
+
+
 def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
     """The verdict of a diagnosed campaign in one sentence (posterior, held-out misfit against
     the noise level ``level`` of reduced chi^2), with the points left out and the candidates
@@ -202,5 +221,5 @@ def locate(diag: Diagnosis, system) -> dict:
     return out
 
 
-__all__ = ["MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "INSUFFICIENT", "Diagnosis", "speeds_of",
+__all__ = ["MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "INSUFFICIENT", "Diagnosis", "decide", "speeds_of",
            "shortfall", "locate"]

@@ -87,6 +87,18 @@ def effective_share(whitened, lengths) -> float:
     return float(max((1.0 - rho) / (1.0 + rho), len(lengths) / n))
 
 
+def ramp_reference(ll: dict) -> str:
+    """The model whose ramp prediction is best (highest log likelihood; "none" when every
+    model failed): the ramps' noise is read off its residual. Its uncertainty scale is the
+    one detectability thresholds are read against, since the scale "none" fits
+    to a campaign with a free play grows with that free play's own misfit, and would
+    make the effect present in the data look undetectable (benchmark case
+    effect/output_backlash/strong/s0 on commit 19acb87: named with posterior 0.999 but
+    detectability null)."""
+    finite = {m: v for m, v in ll.items() if math.isfinite(v)}
+    return max(finite, key=lambda m: finite[m]) if finite else "none"
+
+
 def run_ramps(runner, system, points) -> dict:
     """{point id: simulated windup [rad] on the record's time base, or the run's error text}."""
     out = runner.map([(drive.diagnosis_system(system), p) for p in points])
@@ -261,6 +273,7 @@ def errors_and_traces(stages: dict, points) -> tuple:
     return errors, traces, problems
 
 
-__all__ = ["RAMP_SAMPLE_HZ", "OFFSET_PRIOR_DEG", "WINDUP_FLOOR_DEG", "effective_share", "windup_noise", "run_ramps",
+__all__ = ["RAMP_SAMPLE_HZ", "OFFSET_PRIOR_DEG", "WINDUP_FLOOR_DEG", "effective_share", "ramp_reference", "windup_noise",
+           "run_ramps",
            "RampLikelihood",
            "ramp_likelihood", "errors_and_traces"]

@@ -192,7 +192,33 @@ def threshold_magnitude(mags, chi2_gain, needed: float, grows: bool, bounds=(Non
     return val
 
 
+def held_out_penalty(lik, models, held, eta: float) -> dict:
+    """{model: log-evidence penalty <= 0} for the fitted models whose held-out run worked:
+    eta/2 times the amount by which the model's robust chi^2 on the held-out points (summed
+    over their real residuals, at the model's training nuisance) exceeds that of "none".
+
+    The evidence is read on the training points. A model that follows a misfit of a few of
+    them (a tuned absorber's narrow response, a pair of effects) can gain evidence there and
+    predict the held-out points worse than the calibrated model; the points it was not fitted
+    to then count against it, as their predictive likelihood would. An improvement is not
+    credited: an effect that takes up the model's own discretisation error improves the
+    held-out points as much as the training ones (a transducer low pass in a clean campaign
+    did), so crediting it would reward that imitation."""
+    n = 2 * len(held) * len(lik.orders)
+    if not held or models["none"]["yh"] is None:
+        return {}
+    base = lik.robust_reduced_chi2(models["none"]["yh"], held, models["none"]["nuisance"])
+    out = {}
+    for label, fit in models.items():
+        if label == "none" or fit["yh"] is None:
+            continue
+        chi = lik.robust_reduced_chi2(fit["yh"], held, fit["nuisance"])
+        if math.isfinite(chi) and math.isfinite(base):
+            out[label] = -0.5 * eta * n * max(0.0, chi - base)
+    return out
+
+
 __all__ = ["MAGNITUDE_PRIOR_SD", "SHAPE_PRIOR_SD", "MODEL_PRIOR", "Z90", "DETECTION_POSTERIOR", "learning_rate",
-           "log_evidence",
+           "log_evidence", "held_out_penalty",
            "posterior_covariance", "interval90", "model_priors", "posterior", "linear_screen_evidence",
            "detection_chi2", "threshold_magnitude"]

@@ -203,3 +203,26 @@ def test_delay_prior_keeps_an_unidentifiable_delay_at_zero():
     lik = Likelihood(noise, sigma, speed, ORDERS)
     nu = lik.fit_nuisance(np.zeros_like(model), list(range(len(model))))
     assert abs(nu[1]) < 1e-3 * DELAY_PRIOR_SD
+
+
+def test_a_model_that_predicts_the_held_out_points_worse_than_none_is_penalised():
+    """eta/2 times its extra held-out chi^2 against "none"; a better prediction earns nothing
+    (an effect imitating the model's own error would improve held-out points too), and a
+    model whose held-out run failed gets no entry (it has no evidence at all)."""
+    speed, model, noise, sigma = _campaign(seed=4)
+    lik = Likelihood(model + noise, sigma, speed, ORDERS)
+    held = [1, 4, 7, 10]
+    over = model.copy()
+    over[held] += 0.2  # 4 sigma at every held-out order: what an over-fitted pair predicts
+    better = model + noise  # predicts the held-out noise exactly
+    nu = np.zeros(2)
+    models = {"none": {"yh": model[held], "nuisance": nu}, "overfit": {"yh": over[held], "nuisance": nu},
+              "better": {"yh": better[held], "nuisance": nu}, "crashed": {"yh": None, "nuisance": nu}}
+    eta = 0.5
+    pen = selection.held_out_penalty(lik, models, held, eta)
+    assert set(pen) == {"overfit", "better"}
+    assert pen["better"] == 0.0
+    n = 2 * len(held) * len(ORDERS)
+    extra = lik.robust_reduced_chi2(over[held], held, nu) - lik.robust_reduced_chi2(model[held], held, nu)
+    assert extra > 10.0  # the 4 sigma offset, squared, less the noise's own chi^2
+    assert pen["overfit"] == pytest.approx(-0.5 * eta * n * extra)

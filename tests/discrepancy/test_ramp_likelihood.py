@@ -114,7 +114,7 @@ def test_the_ramp_noise_is_read_off_the_best_ramp_prediction():
     undetectable (as benchmark case effect/output_backlash/strong/s0 did)."""
     import math
 
-    from dampersim.discrepancy.diagnose import ramp_reference
+    from dampersim.discrepancy.ramps import ramp_reference
 
     assert ramp_reference({"none": -120.0, "output_backlash": -40.0, "clutch_slip": -118.0}) == "output_backlash"
     assert ramp_reference({"none": -10.0, "output_backlash": -math.inf}) == "none"
