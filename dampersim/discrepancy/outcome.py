@@ -151,6 +151,29 @@ def decide(top: str, posterior: float, chi_top: float, chi_none: float, level: f
     return "unexplained"
 
 
+def not_adopted_reason(verdict: str, top: str, posterior: float, chi_top, chi_none, level) -> str | None:
+    """Why the most probable model ``top``, an effect or pair, was not adopted (see
+    :func:`decide`), in one clause; None when ``top`` is "none", the effect was adopted,
+    or it simply leaves the held-out misfit above the noise level like every model."""
+    if top in (None, "none") or verdict == "missing_effect" or None in (chi_top, chi_none, level):
+        return None
+    name = top.replace("+", " and ")
+    need = f"{DETECTION_POSTERIOR:.2f} needed"
+    if verdict == "no_missing_effect":
+        return (f"no missing effect is adopted: {name} is the most probable model but not decisive (posterior "
+                f"{posterior:.3f}, {need}), and the calibrated model's held-out misfit is already at the noise level "
+                f"(reduced chi^2 {chi_none:.3g} against {level:.3g})")
+    if posterior < DETECTION_POSTERIOR and chi_top <= level:
+        return (f"{name} (posterior {posterior:.3f}) brings the held-out misfit to the noise level (reduced chi^2 "
+                f"{chi_none:.3g} calibrated, {chi_top:.3g} with it, against {level:.3g}) but is not decisive ({need}), "
+                "and the calibrated model alone stays above the noise level: not adopted")
+    if chi_none <= level < chi_top:
+        return (f"{name} is the most probable model (posterior {posterior:.3f}) but leaves the held-out misfit above "
+                f"the noise level (reduced chi^2 {chi_top:.3g} against {level:.3g}) where the calibrated model alone "
+                f"is within it ({chi_none:.3g}): not adopted")
+    return None
+
+
 def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
     """The verdict of a diagnosed campaign in one sentence (posterior, held-out misfit against
     the noise level ``level`` of reduced chi^2), with the points left out and the candidates
@@ -164,18 +187,11 @@ def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
         text = (f"{top.replace('+', ' and ')} (posterior {p:.2f}) brings the held-out misfit from reduced chi^2 "
                 f"{chi_cal:.3g} to {chi_top:.3g}, within the noise level {level:.3g} ({gaps}, {diag.gap_after_nm:.3g} "
                 "N m with the effect)")
-    elif diag.verdict == "no_missing_effect" and top == "none":
+    elif not_adopted_reason(diag.verdict, top, p, chi_top, chi_cal, level):
+        text = not_adopted_reason(diag.verdict, top, p, chi_top, chi_cal, level) + f" ({gaps})"
+    elif diag.verdict == "no_missing_effect":
         text = (f"no missing effect is the most probable model (posterior {p:.2f}) and the calibrated model's "
                 f"held-out misfit is at the noise level (reduced chi^2 {chi_cal:.3g} against {level:.3g}; {gaps})")
-    elif diag.verdict == "no_missing_effect":
-        text = (f"no missing effect is adopted: {top.replace('+', ' and ')} is the most probable model but not "
-                f"decisive (posterior {p:.2f}, {DETECTION_POSTERIOR:.2f} needed), and the calibrated model's held-out "
-                f"misfit is already at the noise level (reduced chi^2 {chi_cal:.3g} against {level:.3g}; {gaps})")
-    elif top != "none" and p < DETECTION_POSTERIOR and chi_top <= level:
-        text = (f"the most probable model ({top}, posterior {p:.2f}) brings the held-out misfit to the noise level "
-                f"(reduced chi^2 {chi_cal:.3g} calibrated, {chi_top:.3g} with it, against {level:.3g}; {gaps}) but is "
-                f"not decisive ({DETECTION_POSTERIOR:.2f} needed), and the calibrated model alone stays above the "
-                "noise level: not adopted")
     else:
         text = (f"the most probable model ({top}, posterior {p:.2f}) leaves a held-out misfit above the noise level "
                 f"(reduced chi^2 {chi_top:.3g} against {level:.3g}; {gaps}): no candidate explains the data")
@@ -221,5 +237,6 @@ def locate(diag: Diagnosis, system) -> dict:
     return out
 
 
-__all__ = ["MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "INSUFFICIENT", "Diagnosis", "decide", "speeds_of",
+__all__ = ["MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "INSUFFICIENT", "Diagnosis", "decide",
+           "not_adopted_reason", "speeds_of",
            "shortfall", "locate"]

@@ -113,7 +113,7 @@ class RampLikelihood:
         self.scale = 1.0  # the uncertainty scale of the last prediction
         self.whitened = None  # the last prediction's whitened residual
         self.fraction = 1.0  # the effective share of independent samples (see effective_share)
-        self.noise_scale = 1.0  # the uncertainty scale of the best ramp prediction (diagnose.ramp_reference)
+        self.noise_scale = 1.0  # the uncertainty scale of the best ramp prediction (ramp_reference)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:

@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 from dampersim.discrepancy import diagnose as dg
 from dampersim.discrepancy.effects import NAMES, describe, parameters_of
+from dampersim.discrepancy.outcome import not_adopted_reason
 from dampersim.errors import InputError
 from dampersim.jsonsafe import jsonable
 
@@ -160,6 +161,13 @@ def verdict_summary(doc: dict) -> dict:
                   f"from reduced chi^2 {chi(lk.get('reduced_chi2_held_out_calibrated'))} (calibrated) to "
                   f"{chi(lk.get('reduced_chi2_held_out'))}, within the noise level {chi(level_chi)}; the held-out gap "
                   f"from {nm(cal)} to {nm(after)}.")
+    elif not_adopted_reason(verdict, top, post.get(top, 0.0), lk.get("reduced_chi2_held_out"),
+                            lk.get("reduced_chi2_held_out_calibrated"), level_chi):
+        level, headline = (("info", "No missing effect") if verdict == "no_missing_effect"
+                           else ("warning", "Unexplained discrepancy"))
+        reason = _sentence(not_adopted_reason(verdict, top, post.get(top, 0.0), lk.get("reduced_chi2_held_out"),
+                                              lk.get("reduced_chi2_held_out_calibrated"), level_chi)
+                           + f" (held-out gap {nm(cal)} calibrated).")
     elif verdict == "no_missing_effect":
         level, headline = "info", "No missing effect"
         reason = (f"The calibrated model is the most probable (posterior {post.get('none', 0.0):.2f}) and its held-out "

@@ -214,7 +214,7 @@ def held_out_penalty(lik, models, held, eta: float) -> dict:
             continue
         chi = lik.robust_reduced_chi2(fit["yh"], held, fit["nuisance"])
         if math.isfinite(chi) and math.isfinite(base):
-            out[label] = -0.5 * eta * n * max(0.0, chi - base)
+            out[label] = -0.5 * eta * n * max(0.0, chi - base) + 0.0  # + 0.0: no "-0.0" in the JSON
     return out
 
 
