@@ -187,8 +187,8 @@ def _verdict_message(diag: Diagnosis, left_out: list, level: float) -> str:
         text = (f"{top.replace('+', ' and ')} (posterior {p:.2f}) brings the held-out misfit from reduced chi^2 "
                 f"{chi_cal:.3g} to {chi_top:.3g}, within the noise level {level:.3g} ({gaps}, {diag.gap_after_nm:.3g} "
                 "N m with the effect)")
-    elif not_adopted_reason(diag.verdict, top, p, chi_top, chi_cal, level):
-        text = not_adopted_reason(diag.verdict, top, p, chi_top, chi_cal, level) + f" ({gaps})"
+    elif why := not_adopted_reason(diag.verdict, top, p, chi_top, chi_cal, level):
+        text = f"{why} ({gaps})"
     elif diag.verdict == "no_missing_effect":
         text = (f"no missing effect is the most probable model (posterior {p:.2f}) and the calibrated model's "
                 f"held-out misfit is at the noise level (reduced chi^2 {chi_cal:.3g} against {level:.3g}; {gaps})")

@@ -161,13 +161,11 @@ def verdict_summary(doc: dict) -> dict:
                   f"from reduced chi^2 {chi(lk.get('reduced_chi2_held_out_calibrated'))} (calibrated) to "
                   f"{chi(lk.get('reduced_chi2_held_out'))}, within the noise level {chi(level_chi)}; the held-out gap "
                   f"from {nm(cal)} to {nm(after)}.")
-    elif not_adopted_reason(verdict, top, post.get(top, 0.0), lk.get("reduced_chi2_held_out"),
-                            lk.get("reduced_chi2_held_out_calibrated"), level_chi):
+    elif why := not_adopted_reason(verdict, top, post.get(top, 0.0), lk.get("reduced_chi2_held_out"),
+                                   lk.get("reduced_chi2_held_out_calibrated"), level_chi):
         level, headline = (("info", "No missing effect") if verdict == "no_missing_effect"
                            else ("warning", "Unexplained discrepancy"))
-        reason = _sentence(not_adopted_reason(verdict, top, post.get(top, 0.0), lk.get("reduced_chi2_held_out"),
-                                              lk.get("reduced_chi2_held_out_calibrated"), level_chi)
-                           + f" (held-out gap {nm(cal)} calibrated).")
+        reason = _sentence(f"{why} (held-out gap {nm(cal)} calibrated).")
     elif verdict == "no_missing_effect":
         level, headline = "info", "No missing effect"
         reason = (f"The calibrated model is the most probable (posterior {post.get('none', 0.0):.2f}) and its held-out "
