@@ -184,7 +184,6 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
                            "columns": [], "nuisance": lik.profile(y_tr, train)[1], "start": "calibrated"}}
         models["none"]["log_z"], models["none"]["cov"] = namer.evidence(models["none"], [], bias_w)
-        z_none = models["none"]["log_z"]
         unfitted = {}  # shortlisted candidates every fit of which failed: no evidence
 
         def finish(label, fit, names):
@@ -237,7 +236,6 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     finish(label, fit, [best_single, second])
                     pairs.append(label)
                     eta = temper()  # the pair may fit better than any single effect
-        z_none = models["none"]["log_z"]
         # ramps: every fitted model replays them and they join its evidence as a prediction
         # carrying the fit's uncertainty (the fits themselves use the torsional points)
         ramp_lik, ramp_runs, ramp_ll, chi_r = None, {}, {}, {}
@@ -252,17 +250,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # posterior over all models: fitted models by their Laplace evidence, the others by
         # the linear screen's evidence relative to "none" (exact for a linear signature;
         # their ramps are taken as those of "none")
-        log_z = {"none": z_none + ramp_ll.get("none", 0.0)}
-        for name in cands:
-            log_z[name] = (models[name]["log_z"] + ramp_ll.get(name, 0.0) + penalty.get(name, 0.0) if name in models
-                           else log_z["none"] + namer.screen_evidence(screen[name], eta))
-        for label in pairs:
-            log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0) + penalty.get(label, 0.0)
-        for label, fit in models.items():  # a model whose held-out run failed is no match: no evidence
-            if fit["yh"] is None:
-                log_z[label] = -math.inf
-        for name in unfitted:
-            log_z[name] = -math.inf
+        screen_z = {n: namer.screen_evidence(screen[n], eta) for n in cands if n not in models}
+        log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted)
         priors = selection.model_priors(cands, pairs)
         post = selection.posterior(log_z, priors)
         judged = [m for m in models if models[m]["yh"] is not None]
@@ -286,8 +275,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             w = ramps_lik.run_ramps(runner, with_effect(cal, name, {info(name).magnitude: m}), campaign.ramps)
             cov = models["none"]["cov"]
             pad = [np.zeros(ramp_lik.residuals)] * (cov.shape[0] - len(ramp_lik.cols_x))
-            return ramp_lik.signature_gain(w, ramp_runs["none"], np.column_stack([*ramp_lik.cols_x, *pad]), cov,
-                                           ramp_lik.noise_scale)
+            return ramp_lik.signature_gain(w, ramp_runs["none"], np.column_stack([*ramp_lik.cols_x, *pad]), cov)
 
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
@@ -414,14 +402,10 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
         cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes, channels: not on the ramps
         ll[label], chi[label], _, _ = lik_r.predictive(runs[label], np.column_stack(cols), fit["cov"])
         scales[label], whitened[label] = lik_r.scale, lik_r.whitened
-    # the samples' effective share from the model that explains the ramps best (its residual
-    # is the least systematic); it scales every model's log likelihood from here on
-    best = ramps_lik.ramp_reference(ll)
-    if whitened.get(best) is not None and math.isfinite(ll[best]):
-        lik_r.fraction = ramps_lik.effective_share(whitened[best], lik_r.lengths())
-        ll = {m: v * lik_r.fraction for m, v in ll.items()}
-    lik_r.scales, lik_r.cols_x = scales, cols_x
-    lik_r.noise_scale = scales[best] if math.isfinite(ll[best]) else scales["none"]
+    # the model that explains the ramps best fixes their effective share (scaling every
+    # model's log likelihood from here on) and the noise scale of detectability
+    ll = lik_r.settle(ll, scales, whitened)
+    lik_r.cols_x = cols_x
     return lik_r, runs, ll, chi
 
 

@@ -114,6 +114,7 @@ class RampLikelihood:
         self.whitened = None  # the last prediction's whitened residual
         self.fraction = 1.0  # the effective share of independent samples (see effective_share)
         self.noise_scale = 1.0  # the uncertainty scale of the best ramp prediction (ramp_reference)
+        self.scales = {}  # {model: its prediction's uncertainty scale} (settle)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:
@@ -202,16 +203,33 @@ class RampLikelihood:
         j, c, sig2 = self._parts(jac, cov)
         return np.diag(sig2 * scale ** 2) + j @ c @ j.T
 
-    def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float) -> float:
+    def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float | None = None) -> float:
         """The chi^2 an effect's ramp signature (windups minus the base model's) would add
         against a model with parameter covariance ``cov`` through sensitivities ``jac`` and
-        uncertainty scale ``scale``: what the calibration and the offsets cannot absorb
-        (0 when a run failed or there are no samples)."""
+        uncertainty scale ``scale`` (default: ``noise_scale``, set by :meth:`settle`): what
+        the calibration and the offsets cannot absorb (0 when a run failed or there are no
+        samples)."""
         a, b = self._model(windups), self._model(base)
         if not self.residuals or a is None or b is None:
             return 0.0
         d = a - b
+        scale = self.noise_scale if scale is None else scale
         return self.fraction * float(d @ np.linalg.solve(self._covariance(jac, cov, scale), d))
+
+    def settle(self, ll: dict, scales: dict, whitened: dict) -> dict:
+        """Fix the ramps' noise from every model's prediction ({model: log likelihood},
+        {model: fitted uncertainty scale}, {model: whitened residual}, as :meth:`predictive`
+        left them): the model whose prediction is best (:func:`ramp_reference`) gives the
+        samples' effective share ``fraction`` (its residual is the least systematic) and the
+        ``noise_scale`` detectability is read against. Returns the log likelihoods scaled by
+        that share."""
+        best = ramp_reference(ll)
+        if whitened.get(best) is not None and math.isfinite(ll[best]):
+            self.fraction = effective_share(whitened[best], self.lengths())
+            ll = {m: v * self.fraction for m, v in ll.items()}
+        self.scales = dict(scales)
+        self.noise_scale = scales[best] if math.isfinite(ll[best]) else scales["none"]
+        return ll
 
     def predictive(self, windups: dict, jac, cov):
         """The ramps' log likelihood given a model fitted on the torsional points, with that

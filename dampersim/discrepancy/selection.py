@@ -218,7 +218,31 @@ def held_out_penalty(lik, models, held, eta: float) -> dict:
     return out
 
 
+def model_log_evidence(models: dict, candidates, pairs, screen_z: dict, ramp_ll: dict, penalty: dict,
+                       unfitted) -> dict:
+    """{model: log evidence} of every model the posterior compares. ``models``: the fitted
+    ones ({label: fit with "log_z" and "yh", the held-out coefficients or None when that run
+    failed}); a fitted model's evidence is its Laplace evidence on the training points plus
+    its ramps' log likelihood (``ramp_ll``) plus its held-out penalty (``penalty``,
+    :func:`held_out_penalty`). A candidate that was not fitted takes "none"'s evidence plus
+    its linear screen's (``screen_z``, relative to "none"; its ramps are taken as those of
+    "none"). A model whose held-out run failed, and a candidate every fit of which failed
+    (``unfitted``), get -inf: a failed run is never a match."""
+    log_z = {"none": models["none"]["log_z"] + ramp_ll.get("none", 0.0)}
+    for label in [*candidates, *pairs]:
+        if label in models:
+            log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0) + penalty.get(label, 0.0)
+        else:
+            log_z[label] = log_z["none"] + screen_z[label]
+    for label, fit in models.items():
+        if fit["yh"] is None:
+            log_z[label] = -math.inf
+    for label in unfitted:
+        log_z[label] = -math.inf
+    return log_z
+
+
 __all__ = ["MAGNITUDE_PRIOR_SD", "SHAPE_PRIOR_SD", "MODEL_PRIOR", "Z90", "DETECTION_POSTERIOR", "learning_rate",
-           "log_evidence", "held_out_penalty",
+           "log_evidence", "held_out_penalty", "model_log_evidence",
            "posterior_covariance", "interval90", "model_priors", "posterior", "linear_screen_evidence",
            "detection_chi2", "threshold_magnitude"]

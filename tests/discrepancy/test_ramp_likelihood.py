@@ -119,3 +119,26 @@ def test_the_ramp_noise_is_read_off_the_best_ramp_prediction():
     assert ramp_reference({"none": -120.0, "output_backlash": -40.0, "clutch_slip": -118.0}) == "output_backlash"
     assert ramp_reference({"none": -10.0, "output_backlash": -math.inf}) == "none"
     assert ramp_reference({"none": -math.inf, "turbine_drag": -math.inf}) == "none"
+
+
+def test_detectability_reads_the_ramps_at_the_best_predictions_noise_scale():
+    """settle() takes the ramps' noise scale from the model that predicts them best, and a
+    signature's gain is read against it by default: against the scale "none" fits to a
+    campaign holding a free play, that same free play would look undetectable (benchmark
+    case effect/output_backlash/strong/s0, commit 19acb87)."""
+    p = F.ramp("r0")
+    base = {p.id: p.windup}
+    lik = RampLikelihood([p], base, base)
+    col = lik.column({p.id: p.windup * math.exp(0.01)}, base, 0.01)[:, None]
+    cov = np.array([[1e-4]])
+    step = {p.id: p.windup + np.where(np.gradient(p.input_torque) > 0, 0.0, np.radians(0.2))}
+    white = np.random.default_rng(0).standard_normal(lik.residuals)
+    ll = lik.settle({"none": -900.0, "output_backlash": -40.0},
+                    {"none": 8.0, "output_backlash": 1.5}, {"none": None, "output_backlash": white})
+    assert lik.noise_scale == 1.5
+    assert lik.fraction > 0.5 and ll["output_backlash"] == pytest.approx(-40.0 * lik.fraction)
+    assert lik.signature_gain(step, base, col, cov) == lik.signature_gain(step, base, col, cov, 1.5)
+    assert lik.signature_gain(step, base, col, cov) > 10 * lik.signature_gain(step, base, col, cov, 8.0)
+    # every prediction failed: the scale falls back to "none"'s
+    lik.settle({"none": -math.inf, "output_backlash": -math.inf}, {"none": 3.0, "output_backlash": 1.0}, {})
+    assert lik.noise_scale == 3.0
