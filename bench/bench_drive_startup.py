@@ -1,0 +1,61 @@
+"""How well does the diagnosis's drive reproduce a record of the model itself?
+
+The truth is the diagnosed model itself (default set, same segments and step, no
+perturbation, no effect, sensor noise -60 dB, no channel gain error), run by the synthetic
+engine drive of ``dampersim.discrepancy.synth``; the model is then driven by the record's
+input torque exactly as a diagnosis drives it (``drive.simulate_point``) and its complex
+output order coefficients are compared with the record's. Any difference is the drive's
+own error: nothing else differs. For scale, the record's split-half repeatability (the
+likelihood's data term) is printed too.
+
+    python bench/bench_drive_startup.py                               # four points
+    python bench/bench_drive_startup.py --points map_900_150 tc_2800 --record 1.0
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+
+import numpy as np
+
+from dampersim.discrepancy import drive, synth
+from dampersim.discrepancy.campaign import read_campaign
+from dampersim.discrepancy.likelihood import measured_coefficients, split_half_sigma
+from dampersim.parameters import default_parameters
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--points", nargs="+", default=["map_900_150", "tc_1600", "tc_2800", "map_1500_350"],
+                    help="ids of the synthetic plan (dampersim.discrepancy.synth.plan)")
+    ap.add_argument("--record", type=float, default=1.0, help="record length [s]")
+    ap.add_argument("--seed", type=int, default=4242)
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    same = synth.truth_system
+    synth.truth_system = lambda *a, **k: same(*a, **{**k, "fine": False})  # the truth is the model itself
+    system = drive.diagnosis_system(default_parameters())
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "campaign")
+        synth.synthesize(out, effects=[], perturb=0.0, noise_db=-60.0, seed=args.seed, points=args.points,
+                         record=args.record, gain_error=0.0, workers=args.workers)
+        points = read_campaign(out).torsional
+    print(f"orders {', '.join(f'{k:g}' for k in drive.ORDERS)}; |model - record| and split-half sigma [N m]")
+    for p in points:
+        meas = measured_coefficients(p, drive.ORDERS)
+        model = drive.simulate_point(system, p)["coefficients"]
+        err = np.abs(model - meas)
+        k = int(np.argmax(err))
+        print(f"{p.id:14s} largest {err[k]:.3f} N m at order {drive.ORDERS[k]:g} (|record| {abs(meas[k]):.2f} N m)")
+        print(f"{'':14s} |record|   {np.array2string(np.abs(meas), precision=3)}")
+        print(f"{'':14s} error      {np.array2string(err, precision=3)}")
+        print(f"{'':14s} split-half {np.array2string(split_half_sigma(p, drive.ORDERS), precision=3)}")
+    print(f"wall {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
