@@ -1,15 +1,17 @@
 """How well does the diagnosis's drive reproduce a record of the model itself?
 
 The truth is the diagnosed model itself (default set, same segments and step, no
-perturbation, no effect, sensor noise -60 dB, no channel gain error), run by the synthetic
-engine drive of ``dampersim.discrepancy.synth``; the model is then driven by the record's
-input torque exactly as a diagnosis drives it (``drive.simulate_point``) and its complex
-output order coefficients are compared with the record's. Any difference is the drive's
-own error: nothing else differs. For scale, the record's split-half repeatability (the
-likelihood's data term) is printed too.
+perturbation, no effect, sensor noise -60 dB re 1 N m, no channel gain error), run by the
+synthetic engine drive of ``dampersim.discrepancy.synth``; the model is then driven by the
+record's input torque exactly as a diagnosis drives it (``drive.simulate_point``) and its
+complex output order coefficients are compared with the record's. The difference is the
+drive's own error, up to what the synthetic record adds: the truth's 10 kHz output sampling
+and 0.5 rpm of speed-channel noise. For scale, the record's split-half repeatability (the
+likelihood's data term) is printed too. Each point's engine amplitudes are drawn from the
+seed and the set of points, so a point's figures change with ``--points``.
 
     python bench/bench_drive_startup.py                               # four points
-    python bench/bench_drive_startup.py --points map_900_150 tc_2800 --record 1.0
+    python bench/bench_drive_startup.py --points map_900_150 tc_2800
 """
 
 from __future__ import annotations
@@ -39,11 +41,14 @@ def main(argv=None):
     synth.truth_system = lambda *a, **k: same(*a, **{**k, "fine": False})  # the truth is the model itself
     system = drive.diagnosis_system(default_parameters())
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "campaign")
-        synth.synthesize(out, effects=[], perturb=0.0, noise_db=-60.0, seed=args.seed, points=args.points,
-                         record=args.record, gain_error=0.0, workers=args.workers)
-        points = read_campaign(out).torsional
+    try:
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "campaign")
+            synth.synthesize(out, effects=[], perturb=0.0, noise_db=-60.0, seed=args.seed, points=args.points,
+                             record=args.record, gain_error=0.0, workers=args.workers)
+            points = read_campaign(out).torsional
+    finally:
+        synth.truth_system = same
     print(f"orders {', '.join(f'{k:g}' for k in drive.ORDERS)}; |model - record| and split-half sigma [N m]")
     for p in points:
         meas = measured_coefficients(p, drive.ORDERS)

@@ -143,3 +143,25 @@ def test_the_next_points_separate_the_two_most_probable_models(monkeypatch):
     first = recs[0]
     assert first["kind"] == "torsional" and first["orders"].startswith("2:") and first["protocol"] is None
     assert "separates the two most probable models" in first["reason"] and "turbine_drag" in first["reason"]
+
+
+def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
+    """The diagnosis's posterior is the one selection.model_log_evidence gives from the
+    held-out penalties the diagnosis reports: if diagnose stopped passing the penalty (or
+    computed log evidences elsewhere), the reported posterior would differ from this one."""
+    from dampersim.discrepancy import selection
+
+    seen = {}
+    real = selection.model_log_evidence
+
+    def spy(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted):
+        seen["penalty"], seen["pairs"] = dict(penalty), list(pairs)
+        seen["log_z"] = real(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted)
+        return seen["log_z"]
+
+    monkeypatch.setattr(selection, "model_log_evidence", spy)
+    d = run(monkeypatch, None, candidates=["clutch_slip", "turbine_drag"])
+    assert seen["penalty"] == d.likelihood["held_out_penalty"] and seen["penalty"]  # every fitted model has one
+    assert seen["log_z"] == d.likelihood["log_evidence"]
+    expect = selection.posterior(seen["log_z"], selection.model_priors(["clutch_slip", "turbine_drag"], seen["pairs"]))
+    assert {k: d.posterior[k] for k in expect} == pytest.approx(expect)
