@@ -228,7 +228,7 @@ class RampLikelihood:
             self.fraction = effective_share(whitened[best], self.lengths())
             ll = {m: v * self.fraction for m, v in ll.items()}
         self.scales = dict(scales)
-        self.noise_scale = scales[best] if math.isfinite(ll[best]) else scales["none"]
+        self.noise_scale = scales[best]  # "none"'s when every prediction failed (ramp_reference)
         return ll
 
     def predictive(self, windups: dict, jac, cov):
