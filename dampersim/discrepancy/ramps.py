@@ -113,8 +113,8 @@ class RampLikelihood:
         self.scale = 1.0  # the uncertainty scale of the last prediction
         self.whitened = None  # the last prediction's whitened residual
         self.fraction = 1.0  # the effective share of independent samples (see effective_share)
-        self.noise_scale = 1.0  # the uncertainty scale of the best ramp prediction (ramp_reference)
         self.scales = {}  # {model: its prediction's uncertainty scale} (settle)
+        self.reference = "none"  # the model whose ramp prediction is best (settle, ramp_reference)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:
@@ -227,9 +227,14 @@ class RampLikelihood:
         if whitened.get(best) is not None and math.isfinite(ll[best]):
             self.fraction = effective_share(whitened[best], self.lengths())
             ll = {m: v * self.fraction for m, v in ll.items()}
-        self.scales = dict(scales)
-        self.noise_scale = scales[best]  # "none"'s when every prediction failed (ramp_reference)
+        self.scales, self.reference = dict(scales), best
         return ll
+
+    @property
+    def noise_scale(self) -> float:
+        """The uncertainty scale of the best ramp prediction (1 before :meth:`settle`; that of
+        "none" when every prediction failed, see :func:`ramp_reference`)."""
+        return float(self.scales.get(self.reference, 1.0))
 
     def predictive(self, windups: dict, jac, cov):
         """The ramps' log likelihood given a model fitted on the torsional points, with that

@@ -226,3 +226,16 @@ def test_a_model_that_predicts_the_held_out_points_worse_than_none_is_penalised(
     extra = lik.robust_reduced_chi2(over[held], held, nu) - lik.robust_reduced_chi2(model[held], held, nu)
     assert extra > 10.0  # the 4 sigma offset, squared, less the noise's own chi^2
     assert pen["overfit"] == pytest.approx(-0.5 * eta * n * extra)
+
+
+def test_the_posterior_compares_penalised_evidences_and_never_a_failed_run():
+    """What the posterior is computed from: a fitted model's Laplace evidence plus its ramps'
+    log likelihood plus its held-out penalty; an unfitted candidate "none"'s evidence plus its
+    screen's; -inf for a failed held-out run or a candidate every fit of which failed."""
+    models = {"none": {"log_z": -100.0, "yh": [1.0]},
+              "a": {"log_z": -80.0, "yh": [1.0]},
+              "b": {"log_z": -50.0, "yh": None},
+              "a+c": {"log_z": -70.0, "yh": [1.0]}}
+    z = selection.model_log_evidence(models, ["a", "b", "c", "d"], ["a+c"], {"c": 4.0, "d": 1.0},
+                           {"none": -5.0, "a": -2.0, "a+c": -1.0}, {"a": -30.0, "a+c": -0.5}, ["d"])
+    assert z == {"none": -105.0, "a": -112.0, "b": -math.inf, "c": -101.0, "d": -math.inf, "a+c": -71.5}

@@ -1,8 +1,6 @@
 """The verdict rule: an effect is adopted only when it is decisive and explains the held-out
 points; a more probable but not decisive effect is never adopted."""
 
-import math
-
 import pytest
 
 from dampersim.discrepancy.diagnose import decide
@@ -73,17 +71,3 @@ def test_the_page_and_report_summary_say_the_same(verdict, top, post, chi_top, c
     assert all(w in v["reason"] for w in words), v["reason"]
     assert "no candidate explains the data" not in v["reason"]
 
-
-def test_the_posterior_compares_penalised_evidences_and_never_a_failed_run():
-    """What the posterior is computed from: a fitted model's Laplace evidence plus its ramps'
-    log likelihood plus its held-out penalty; an unfitted candidate "none"'s evidence plus its
-    screen's; -inf for a failed held-out run or a candidate every fit of which failed."""
-    from dampersim.discrepancy.selection import model_log_evidence
-
-    models = {"none": {"log_z": -100.0, "yh": [1.0]},
-              "a": {"log_z": -80.0, "yh": [1.0]},
-              "b": {"log_z": -50.0, "yh": None},
-              "a+c": {"log_z": -70.0, "yh": [1.0]}}
-    z = model_log_evidence(models, ["a", "b", "c", "d"], ["a+c"], {"c": 4.0, "d": 1.0},
-                           {"none": -5.0, "a": -2.0, "a+c": -1.0}, {"a": -30.0, "a+c": -0.5}, ["d"])
-    assert z == {"none": -105.0, "a": -112.0, "b": -math.inf, "c": -101.0, "d": -math.inf, "a+c": -71.5}
