@@ -1,0 +1,115 @@
+"""Where does a campaign's misfit come from? One campaign, its truth changed one way at a time.
+
+``--case benchmark`` (default): a no-effect campaign of the hard benchmark's 12 torsional
+points of 1 s (seed 4242, sensor noise -2 dB re 1 N m, no ramp), diagnosed with the
+default 48/16 model against ``turbine_drag`` only (shortlist 1, no next-test design), for
+these truths:
+
+    same     the diagnosed model itself (same segments and step), no perturbation, no DAQ
+    fine     the usual finer truth (64/21 segments, 5e-6 s), no perturbation, no DAQ
+    perturb  finer, estimated parameters perturbed by up to 10 %, no DAQ
+    daq      finer, no perturbation, a random DAQ chain (drawn from the seed)
+
+``--case ci-control`` and ``--case ci-absorber``: the campaigns of
+tests/discrepancy/test_identification.py (18/8 model, 24/10 truth, nine points of 0.8 s,
+3 % perturbation, seed 3, the test's three candidates and options), the absorber one with
+its strong pendulum absorber. ``--daq`` chooses their acquisition chain: ``none``,
+``random`` (the one drawn from seed 3, the absorber test's), or a comma-separated list of
+that chain's parts to keep (``gains``, ``offsets``, ``drift``, ``hum``, ``anti_alias``,
+``skew``, ``ripple``).
+
+One JSON line per run: verdict, posterior, fitted effects, held-out reduced chi^2 of the
+calibrated and of the most probable model, training reduced chi^2, learning rate, every
+point's reduced chi^2, model runs and wall time.
+
+    python bench/bench_control_misfit.py                                  # the four truths
+    python bench/bench_control_misfit.py --truths same fine
+    python bench/bench_control_misfit.py --case ci-control --daq hum
+    python bench/bench_control_misfit.py --case ci-absorber --daq none
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import tempfile
+import time
+
+from dampersim.discrepancy import synth
+from dampersim.discrepancy.campaign import read_campaign
+from dampersim.discrepancy.diagnose import diagnose
+from dampersim.jsonsafe import jsonable
+from dampersim.parameters import at_thesis_segments
+
+BENCH_POINTS = ["tc_1200", "tc_1600", "tc_2000", "tc_2400", "tc_2800", "map_900_150", "map_900_350", "map_1200_50",
+                "map_1200_250", "map_1200_500", "map_1500_150", "map_1500_350"]
+TRUTHS = {"same": dict(perturb=0.0, daq=None, fine=False), "fine": dict(perturb=0.0, daq=None, fine=True),
+          "perturb": dict(perturb=0.1, daq=None, fine=True), "daq": dict(perturb=0.0, daq="random", fine=True)}
+# the strict CI identification campaigns (tests/discrepancy/test_identification.py)
+CI_POINTS = ["map_900_150", "map_1200_250", "map_1500_150", "map_1800_350", "map_2000_50", "map_1200_500",
+             "map_1500_350", "map_1800_150", "map_900_350"]
+CI_CANDIDATES = ["pendulum_absorber", "turbine_drag", "transducer_bandwidth"]
+CI_SEED = 3
+
+
+def ci_daq(spec: str):
+    """The CI campaigns' acquisition chain: None, the random one of seed CI_SEED, or only the
+    listed parts of it."""
+    if spec == "none":
+        return None
+    full = synth.daq_setting("random", CI_SEED)
+    if spec == "random":
+        return full
+    keep = set(spec.split(","))
+    names = {f.name for f in dataclasses.fields(full)}
+    if keep - names:
+        raise SystemExit(f"--daq {spec}: unknown part(s) {', '.join(sorted(keep - names))}; accepted: "
+                         f"none, random, or parts of {', '.join(sorted(names))}")
+    return dataclasses.replace(full, **{n: None for n in names - keep})
+
+
+def run(label, effects, perturb, seed, points, record, daq, fine, base, diag_kw, workers) -> dict:
+    same = synth.truth_system
+    synth.truth_system = lambda *a, **k: same(*a, **{**k, "fine": fine})
+    t0 = time.perf_counter()
+    try:
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "campaign")
+            synth.synthesize(out, effects=effects, perturb=perturb, noise_db=diag_kw.pop("noise_db", 0.0), seed=seed,
+                             points=points, record=record, workers=workers, daq=daq, base=base)
+            dg = jsonable(diagnose(read_campaign(out), base, workers=workers, recommend=False, **diag_kw).to_json())
+    finally:
+        synth.truth_system = same
+    lk = dg["likelihood"]
+    return {"run": label, "verdict": dg["verdict"], "posterior": {k: v for k, v in dg["posterior"].items() if v},
+            "effects": dg["effects"], "reduced_chi2_held_out_calibrated": lk["reduced_chi2_held_out_calibrated"],
+            "reduced_chi2_held_out": lk["reduced_chi2_held_out"], "reduced_chi2_train": lk["reduced_chi2_train"],
+            "learning_rate": lk["learning_rate"], "point_reduced_chi2": lk["point_reduced_chi2"],
+            "simulations": dg["simulations"], "wall_s": time.perf_counter() - t0}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--case", choices=("benchmark", "ci-control", "ci-absorber"), default="benchmark")
+    ap.add_argument("--truths", nargs="+", choices=tuple(TRUTHS), default=list(TRUTHS), help="benchmark case only")
+    ap.add_argument("--daq", default="random", help="CI cases only: none, random, or parts of the random chain")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    if args.case == "benchmark":
+        for name in args.truths:
+            t = TRUTHS[name]
+            row = run(name, [], t["perturb"], 4242, BENCH_POINTS, 1.0, t["daq"], t["fine"], None,
+                      {"noise_db": -2.0, "candidates": ["turbine_drag"], "shortlist": 1}, args.workers)
+            print(json.dumps(row), flush=True)
+        return
+    effects = [("pendulum_absorber", {"inertia": 0.002})] if args.case == "ci-absorber" else []
+    row = run(f"{args.case} daq={args.daq}", effects, 0.03, CI_SEED, CI_POINTS, 0.8, ci_daq(args.daq), True,
+              at_thesis_segments(), {"candidates": CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2},
+              args.workers)
+    print(json.dumps(row), flush=True)
+
+
+if __name__ == "__main__":
+    main()
