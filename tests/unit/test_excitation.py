@@ -70,3 +70,25 @@ def test_measured_drive_joins_record_without_jump():
     assert out[3] == pytest.approx(np.interp(0.5, t, y))
     with pytest.raises(InputError):
         MeasuredTorque(speed=100.0, time=t, torque_samples=np.where(t > 0.5, np.nan, y))
+
+
+def test_the_start_up_loops_the_record_over_whole_engine_cycles():
+    """An engine-like torque (orders 0.5 to 4 of the crank speed, so periodic in two
+    revolutions): the loop the start-up plays is a whole number of cycles, within one sample,
+    and the loop's end joins the record's start without a jump."""
+    from dampersim.excitation.measured import loop_length
+
+    speed = 2 * np.pi * 15.0  # 900 rpm [rad/s]
+    t = np.arange(0, 1.0, 2e-4)
+    y = 150 + sum(a * np.cos(k * speed * t + k) for k, a in ((0.5, 3.0), (1, 5.0), (2, 90.0), (4, 20.0)))
+    m = MeasuredTorque(speed=speed, time=t, torque_samples=y)
+    cycle = 4 * np.pi / speed
+    n = m._loop / cycle
+    assert abs(n - round(n)) * cycle <= 2e-4 and round(n) >= 4  # at least half the record: 4 of 7.5 cycles
+    before = m.torque(np.array([m.steady_start - 1e-9, m.steady_start - 0.1]))
+    assert before[0] == pytest.approx(y[0], abs=0.05)  # continuous at the join
+    env = (m.steady_start - 0.1 - m.mean_ramp) / m.amplitude_ramp  # the fade-in's share at that time
+    looped = y.mean() + env * (np.interp(m._loop - 0.1, t, y) - y.mean())
+    assert before[1] == pytest.approx(looped, abs=1e-6)  # the record, looped
+    # fewer than four revolutions: no loop; the record is played backwards as before
+    assert loop_length(t[:800], y[:800], speed) is None
