@@ -16,7 +16,9 @@ class MeasuredTorque:
 
     As in the thesis, the record is preceded by a start-up: ``mean_ramp`` [s] from 0 to
     the record's mean torque, then ``amplitude_ramp`` [s] in which the record's
-    fluctuation is faded in. ``speed`` is the nominal shaft speed [rad/s].
+    fluctuation is faded in, then ``settle`` [s] of it at full amplitude (default 0, as in
+    the thesis), so that the start-up's own transient has died away when the record begins.
+    ``speed`` is the nominal shaft speed [rad/s].
 
     The fluctuation faded in is the record itself played in a loop, ending where the record
     begins: the loop is the longest stretch from the record's start whose end matches the
@@ -37,6 +39,7 @@ class MeasuredTorque:
     torque_samples: np.ndarray = field(repr=False)
     mean_ramp: float = 0.3
     amplitude_ramp: float = 0.3
+    settle: float = 0.0
 
     def __post_init__(self):
         t = np.asarray(self.time, dtype=float)
@@ -47,6 +50,8 @@ class MeasuredTorque:
             raise InputError("measured torque contains NaN/inf samples: accepted is finite data")
         if np.any(np.diff(t) <= 0):
             raise InputError("measured torque: time stamps must increase strictly")
+        if not (math.isfinite(self.settle) and self.settle >= 0):
+            raise InputError(f"settle = {self.settle!r} s: accepted is a finite time >= 0")
         if not (math.isfinite(self.speed) and self.speed > 0):
             raise InputError(f"speed = {self.speed!r} rad/s: accepted is a positive finite speed")
         object.__setattr__(self, "time", t - t[0])
@@ -55,7 +60,8 @@ class MeasuredTorque:
 
     @property
     def steady_start(self) -> float:
-        return self.mean_ramp + self.amplitude_ramp
+        """Start of the record in the run [s]: the ramps, then ``settle`` at full amplitude."""
+        return self.mean_ramp + self.amplitude_ramp + self.settle
 
     @property
     def duration(self) -> float:
