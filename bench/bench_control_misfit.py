@@ -19,8 +19,8 @@ that chain's parts to keep (``gains``, ``offsets``, ``drift``, ``hum``, ``anti_a
 ``skew``, ``ripple``).
 
 One JSON line per run: verdict, posterior, fitted effects, held-out reduced chi^2 of the
-calibrated and of the most probable model, training reduced chi^2, learning rate, every
-point's reduced chi^2, model runs and wall time.
+calibrated and of the most probable model, training reduced chi^2, learning rate, the
+fitted channel nuisance (output gain and delay, input offset and gain), every point's reduced chi^2, model runs and wall time.
 
     python bench/bench_control_misfit.py                                  # the four truths
     python bench/bench_control_misfit.py --truths same fine
@@ -86,7 +86,7 @@ def run(label, effects, perturb, seed, points, record, daq, fine, base, diag_kw,
     return {"run": label, "verdict": dg["verdict"], "posterior": {k: v for k, v in dg["posterior"].items() if v},
             "effects": dg["effects"], "reduced_chi2_held_out_calibrated": lk["reduced_chi2_held_out_calibrated"],
             "reduced_chi2_held_out": lk["reduced_chi2_held_out"], "reduced_chi2_train": lk["reduced_chi2_train"],
-            "learning_rate": lk["learning_rate"], "point_reduced_chi2": lk["point_reduced_chi2"],
+            "learning_rate": lk["learning_rate"], "nuisance": lk["nuisance"], "point_reduced_chi2": lk["point_reduced_chi2"],
             "simulations": dg["simulations"], "wall_s": time.perf_counter() - t0}
 
 

@@ -269,6 +269,7 @@ def pulsation_cost(coupled: bool = False, runs: int = 1, system=None, generator=
 # Counts of :func:`dampersim.discrepancy.diagnose.diagnose` (its defaults), kept here because
 # the discrepancy package sits above this module; tests check them against it.
 DIAGNOSIS_FACTORS = 6  # calibrated log scale factors (CALIBRATION)
+DIAGNOSIS_COMPARE_RUNS = 4  # per point: as given, its coarse check, its input moved up and down (input_mean_sd)
 DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
 DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
 DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)
@@ -293,8 +294,9 @@ DIAGNOSIS_RAMP_RUNS = (3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1
 
 def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     """Upper bound of the model runs one diagnosis makes with ``n_points`` torsional points
-    (every third held out) and ``n_candidates`` effects: compare (twice: the model and its
-    coarse discretisation), coarse scan and Gauss-Newton on the training points, the
+    (every third held out) and ``n_candidates`` effects: compare (four times: the model, its
+    coarse discretisation and its input moved up and down by the input channel's
+    uncertainty), coarse scan and Gauss-Newton on the training points, the
     held-out check, a screen per candidate from two starts, the shortlist's fits from
     both starts (with their shape parameters) and their held-out checks, a pair of
     effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
@@ -302,7 +304,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     n = max(0, int(n_points))
     held = n // 3 + (1 if n % 3 >= 2 else 0)
     train = n - held
-    runs = 2 * n
+    runs = DIAGNOSIS_COMPARE_RUNS * n
     runs += DIAGNOSIS_FACTORS * DIAGNOSIS_SCAN * train
     runs += DIAGNOSIS_ITERATIONS * (DIAGNOSIS_FACTORS + DIAGNOSIS_STEP_TRIALS) * train
     runs += held

@@ -21,13 +21,14 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, naming, selection
+from dampersim.discrepancy import design, drive, naming, pickup, selection
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
                                            GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, _effect_grid,
                                            _lstsq_bounded, _resid, _rms, calibrated_system, coarse_system)
-from dampersim.discrepancy.likelihood import Likelihood, cell_sigma, measured_coefficients, split_half_sigma
+from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, input_mean_sd, measured_coefficients,
+                                              split_half_sigma)
 from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
                                            Diagnosis, _not_diagnosed, _verdict_message, decide, locate, shortfall,
@@ -83,9 +84,15 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # first-order convergence in 1/N that change is half the default model's own
         # discretisation error: a scale, not a correction)
         y_coarse = drive.coefficients_of(runner, coarse_system(system), every, err_coarse)
+        # the orders' sensitivity to the input channel's zero and gain (likelihood.input_mean_sd):
+        # the same drive with each point's input moved up and down by that uncertainty
+        err_in = {}
+        sd_in = [input_mean_sd(float(np.mean(p.input_torque))) for p in every]
+        y_in = [drive.coefficients_of(runner, system, [drive.rezeroed([p], s * sd)[0] for p, sd in zip(every, sd_in)],
+                                      err_in) for s in (-1.0, 1.0)]
         left_out = {i: f"the model run with the parameter set as given failed ({err0[i]})" if i in err0 else
                     f"the discretisation check (two thirds of the spring segments) failed ({err_coarse[i]})"
-                    for i in sorted({*err0, *err_coarse})}
+                    if i in err_coarse else f"the input check (input moved by {sd_in[i]:.3g} N m) failed ({err_in[i]})" for i in sorted({*err0, *err_coarse, *err_in})}
         problems += [drive.run_problem(every[i], f"{why}; the point is left out of the calibration, the effect fits and "
                                        "the verdict") for i, why in left_out.items()]
         keep = [i for i in range(len(every)) if i not in left_out]
@@ -96,13 +103,16 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         y0, y_coarse, meas_c, repeat = y0[keep], y_coarse[keep], meas_c[keep], repeat[keep]
         meas = np.abs(meas_c)
         model_diff = np.abs(y_coarse - y0)
+        offset_change = 0.5 * np.abs(y_in[1][keep] - y_in[0][keep])
         held = [i for i in range(len(pts)) if i % 3 == 1]
         train = [i for i in range(len(pts)) if i % 3 != 1]
         ptr = [pts[i] for i in train]
         # the displayed noise floor [N m] (amplitudes): repeatability, gain tolerance and
         # discretisation change as RMS over the campaign; the verdict uses the likelihood
         floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2 + _rms(model_diff) ** 2)
-        lik = Likelihood(meas_c, cell_sigma(repeat, model_diff, meas_c), [p.speed for p in pts], drive.ORDERS)
+        mains = pickup.pickup_sigma(pts, repeat, drive.ORDERS)
+        sigma = cell_sigma(repeat, model_diff, meas_c, mains, offset_change)
+        lik = Likelihood(meas_c, sigma, [p.speed for p in pts], drive.ORDERS)
 
         def cost(y, x):
             return lik.profile(y, train)[0] + float(np.sum(np.asarray(x) ** 2)) / PRIOR_LOG_SD ** 2

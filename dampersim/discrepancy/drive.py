@@ -70,6 +70,16 @@ def diagnosis_system(system):
     return dataclasses.replace(system, solver=dataclasses.replace(system.solver, time_step=dt))
 
 
+def rezeroed(points, offset_nm: float = 0.0, gain: float = 1.0) -> list:
+    """``points`` with the input torque channel corrected for a zero offset ``offset_nm``
+    [N m] and a gain ``gain`` [-] (recorded = gain x true + offset, so true = (recorded -
+    offset) / gain); the output channel, which the likelihood compares, is left as it is.
+    The points themselves when there is nothing to correct."""
+    if offset_nm == 0.0 and gain == 1.0:
+        return list(points)
+    return [dataclasses.replace(p, input_torque=(np.asarray(p.input_torque) - offset_nm) / gain) for p in points]
+
+
 def simulate_point(system, point) -> dict:
     """Simulate one measured point with ``system``.
 
@@ -174,6 +184,6 @@ def windup_error_deg(sim_windup, point) -> float:
     return float(math.degrees(np.sqrt(np.mean((a - b) ** 2))))
 
 
-__all__ = ["ORDERS", "DRIVE_SETTLE", "RecordedRamp", "diagnosis_system", "simulate_point",
+__all__ = ["ORDERS", "DRIVE_SETTLE", "RecordedRamp", "rezeroed", "diagnosis_system", "simulate_point",
            "run_task", "Runner", "coefficients_of", "run_problem", "failed_text",
            "windup_error_deg"]

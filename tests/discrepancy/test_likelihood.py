@@ -71,6 +71,18 @@ def test_cell_sigma_pools_the_repeatability_per_order():
     assert s[0, 0] == pytest.approx(math.sqrt(0.5 * (0.01 + 0.01 / math.log(2.0)) + 1e-4), rel=1e-9)
 
 
+def test_cell_sigma_adds_the_pickup_and_the_input_offset_check_in_quadrature():
+    rep = np.full((3, 8), 0.1)
+    meas = np.full((3, 8), 10.0)
+    base = cell_sigma(rep, np.zeros((3, 8)), meas)
+    pick = np.zeros((3, 8))
+    pick[1, 1] = 0.3
+    off = np.full((3, 8), 0.2)
+    s = cell_sigma(rep, np.zeros((3, 8)), meas, pick, off)
+    assert s == pytest.approx(np.sqrt(base ** 2 + pick ** 2 + off ** 2), rel=1e-12)
+    assert cell_sigma(rep, np.zeros((3, 8)), meas, None, off) == pytest.approx(np.sqrt(base ** 2 + off ** 2))
+
+
 def test_pooled_repeatability_is_unbiased_for_gaussian_noise():
     """Split-half samples of complex Gaussian noise of variance v: the pooled variance
     (median / ln 2) estimates v without the 31 % bias of a plain median."""

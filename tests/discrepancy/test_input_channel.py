@@ -1,0 +1,114 @@
+"""The input channel's zero offset moves the drive's mean torque; correcting it restores the record."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import drive, synth
+from dampersim.discrepancy.campaign import MeasuredPoint, read_campaign
+from dampersim.discrepancy.likelihood import measured_coefficients
+from dampersim.parameters import at_thesis_segments
+
+OFFSET = 1.5  # [N m]: within the synthetic DAQ's +-2 N m and fitting.INPUT_OFFSET_SD
+
+
+def test_an_input_offset_shows_at_350_nm_and_rezeroing_removes_it(tmp_path, monkeypatch):
+    """The truth is the diagnosed 18/8 model itself (no perturbation, no noise), recorded at
+    1800 rpm and 350 N m, where the mean torque sits near a knee of the characteristic. Drive
+    the model with the record's input torque plus a 1.5 N m zero offset: the orders move by
+    many times the record's own uncertainty (measured: 0.96 N m on order 2, of 18 N m, and
+    0.85 N m on order 6; a record with the usual 1 N m sensor noise has a split-half sigma of
+    0.02-0.05 N m there; limit 0.5 N m on the largest change), and by many times the clean
+    drive's own error (0.066 N m; limit 0.1). drive.rezeroed with the true offset must give
+    back the clean drive's orders (limit 0.01 N m: the two runs then see the same input up to
+    rounding)."""
+    same = synth.truth_system
+    monkeypatch.setattr(synth, "truth_system", lambda *a, **k: same(*a, **{**k, "fine": False}))
+    out = tmp_path / "campaign"
+    base = at_thesis_segments()
+    synth.synthesize(str(out), effects=[], perturb=0.0, noise_db=-60.0, seed=3, points=["map_1800_350"], record=0.8,
+                     gain_error=0.0, base=base)
+    (p,) = read_campaign(str(out)).torsional
+    system = drive.diagnosis_system(base)
+    clean = drive.simulate_point(system, p)["coefficients"]
+    shifted = dataclasses.replace(p, input_torque=p.input_torque + OFFSET)
+    moved = drive.simulate_point(system, shifted)["coefficients"]
+    (back,) = drive.rezeroed([shifted], OFFSET, 1.0)
+    restored = drive.simulate_point(system, back)["coefficients"]
+    assert np.abs(moved - clean).max() > 0.5, np.abs(moved - clean)
+    assert np.abs(restored - clean).max() < 0.01, np.abs(restored - clean)
+    # the clean drive's own error at this point, for scale
+    assert np.abs(clean - measured_coefficients(p, drive.ORDERS)).max() < 0.1
+
+
+def test_rezeroing_divides_out_the_gain_and_leaves_the_output_alone():
+    t = np.linspace(0.0, 1.0, 11)
+    p = MeasuredPoint(id="p", kind="torsional", speed_rpm=1000.0, mean_torque_nm=100.0, sample_rate_hz=10.0, time=t,
+                      input_torque=1.02 * (100.0 + t) + 3.0, output_torque=50.0 + t, input_speed_rpm=None,
+                      output_speed_rpm=None)
+    (q,) = drive.rezeroed([p], 3.0, 1.02)
+    assert np.allclose(q.input_torque, 100.0 + t) and q.output_torque is p.output_torque
+    assert drive.rezeroed([p])[0] is p
+
+
+def _input_sensitive_model(fail_when_moved=False):
+    """The fake rig's stand-in model with orders that grow by 1 % per N m of the record's mean
+    input torque above the manifest's (a damper near its knee); optionally failing whenever
+    the input is moved."""
+    from tests.discrepancy import fake_rig as F
+
+    base = F.fake_model()
+
+    def simulate_point(system, p):
+        shift = float(np.mean(p.input_torque)) - p.mean_torque_nm
+        if fail_when_moved and abs(shift) > 1.0:
+            raise RuntimeError("diverged at the moved input")
+        out = base(system, p)
+        k = 1.0 + 0.01 * shift
+        return {"orders": k * out["orders"], "coefficients": k * out["coefficients"]}
+
+    simulate_point.fake = True
+    return simulate_point
+
+
+def _campaign():
+    from tests.discrepancy import fake_rig as F
+
+    return F.campaign([F.point(*q) for q in F.POINTS])
+
+
+def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(monkeypatch):
+    """diagnose passes cell_sigma half the change of every point's coefficients when its input
+    moves up and down by likelihood.input_mean_sd of its mean torque: with the stand-in's
+    1 % per N m that is that many per cent of each coefficient. Without the wiring the
+    captured term would be None or 0."""
+    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy.likelihood import input_mean_sd
+
+    seen = {}
+    real = dg.cell_sigma
+
+    def spy(repeat, model_change, meas, pickup=None, offset_change=None):
+        seen["offset"] = offset_change
+        return real(repeat, model_change, meas, pickup, offset_change)
+
+    monkeypatch.setattr(dg, "cell_sigma", spy)
+    monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
+    camp = _campaign()
+    dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
+    from tests.discrepancy import fake_rig as F
+
+    system = drive.diagnosis_system(dg.default_parameters())
+    unmoved = np.array([F.fake_model()(system, p)["coefficients"] for p in camp.torsional])
+    sd = np.array([[input_mean_sd(float(np.mean(p.input_torque)))] for p in camp.torsional])
+    assert np.asarray(seen["offset"]) == pytest.approx(0.01 * sd * np.abs(unmoved), rel=1e-9)
+
+
+def test_a_point_whose_input_offset_check_fails_is_left_out_and_reported(monkeypatch):
+    from dampersim.discrepancy.diagnose import diagnose
+
+    monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model(fail_when_moved=True))
+    d = diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
+    assert d.problems and all("input check" in q["message"] and "left out" in q["message"]
+                              for q in d.problems)

@@ -1,0 +1,75 @@
+"""Mains pick-up: measured where it falls between the orders, carried where it falls on one."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import pickup
+from dampersim.discrepancy.campaign import MeasuredPoint
+from dampersim.discrepancy.likelihood import split_half_sigma
+
+FS = 5000.0
+ORDERS = tuple(float(k) for k in range(1, 9))
+
+
+def _point(rpm, hum_nm, seed, noise=0.05, record=0.8):
+    """A torsional record: orders 1-8 at fixed amplitudes, white noise of ``noise`` N m and
+    a 50 Hz line of ``hum_nm`` with a random phase on the output channel."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(record * FS)) / FS
+    w = rpm * math.pi / 30.0
+    orders = sum((3.0 / k) * np.cos(k * w * t + k) for k in ORDERS)
+    out = 200.0 + orders + hum_nm * np.cos(2 * math.pi * 50.0 * t + rng.uniform(0, 2 * math.pi))
+    out = out + noise * rng.standard_normal(len(t))
+    inp = 200.0 + 2.0 * orders + noise * rng.standard_normal(len(t))
+    speed = np.full(len(t), float(rpm))
+    return MeasuredPoint(id=f"p{rpm}_{seed}", kind="torsional", speed_rpm=float(rpm), mean_torque_nm=200.0,
+                         sample_rate_hz=FS, time=t, input_torque=inp, output_torque=out, input_speed_rpm=speed,
+                         output_speed_rpm=speed)
+
+
+def test_the_hann_response_is_one_on_the_bin_a_half_next_to_it_and_zero_at_whole_bins():
+    assert pickup.hann_response([0.0, 1.0, -1.0, 2.0, 3.0, 7.0]) == pytest.approx([1.0, 0.5, 0.5, 0, 0, 0], abs=1e-12)
+    assert pickup.hann_response(2.5) == pytest.approx(1.0 / (2.5 * math.pi) / 5.25)  # between whole bins
+
+
+def test_a_line_between_the_orders_is_measured_and_carried_onto_the_order_it_falls_on():
+    hum = 0.3
+    # 50 Hz at 1100, 1300 and 1800 rpm is at least 4 Hz (3 bins of 0.8 s) from every whole and
+    # half order; at 1500 rpm it is order 2
+    pts = [_point(rpm, hum, s) for s, rpm in enumerate((1100, 1300, 1800, 1800, 1500, 1500))]
+    repeat = np.array([split_half_sigma(p, ORDERS) for p in pts])
+    powers = pickup.line_powers(pts, repeat)
+    # four points are clear of the orders at 50 Hz; their median |line|^2 less the noise: the
+    # noise of one coefficient is about 0.005 N m here, so the estimate is within 20 % of the
+    # 0.3 N m line (a median of four random-phase lines plus noise)
+    assert math.sqrt(powers[50.0]) == pytest.approx(hum, rel=0.2)
+    assert powers[60.0] == 0.0 and powers[150.0] == 0.0  # no such lines: below the significance test
+    sig = pickup.pickup_sigma(pts, repeat, ORDERS)
+    # 50 Hz is order 2 at 1500 rpm (25 Hz): the whole line; one bin away nothing whole leaks
+    assert sig[4, 1] == pytest.approx(math.sqrt(powers[50.0]))
+    assert sig[5, 1] == pytest.approx(math.sqrt(powers[50.0]))
+    others = np.delete(sig, 1, axis=1)
+    assert np.all(others[4:] < 1e-3 * hum)
+    # the clear points: the line falls between their whole orders, at least 3.3 bins from one
+    # over the revolutions read (window response at most 1 %)
+    assert np.all(sig[:4] < 0.01 * hum)
+
+
+def test_without_a_line_nothing_is_added():
+    pts = [_point(rpm, 0.0, s) for s, rpm in enumerate((1100, 1300, 1800, 1500))]
+    repeat = np.array([split_half_sigma(p, ORDERS) for p in pts])
+    assert np.all(pickup.pickup_sigma(pts, repeat, ORDERS) == 0.0)
+
+
+def test_half_orders_are_not_clear_of_the_engine():
+    # 50 Hz is order 2.5 at 1200 rpm and 1.5 at 2000 rpm: half orders of a four-stroke engine
+    assert not pickup._clear(_point(1200, 0.0, 0), 50.0) and not pickup._clear(_point(2000, 0.0, 0), 50.0)
+    assert pickup._clear(_point(1800, 0.0, 0), 50.0)
+
+
+def test_too_few_clear_points_carry_nothing():
+    pts = [_point(1500, 0.3, s) for s in range(3)]  # 50 Hz is an order at every point
+    repeat = np.array([split_half_sigma(p, ORDERS) for p in pts])
+    assert pickup.line_powers(pts, repeat)[50.0] == 0.0
