@@ -20,7 +20,8 @@ that chain's parts to keep (``gains``, ``offsets``, ``drift``, ``hum``, ``anti_a
 
 One JSON line per run: verdict, posterior, fitted effects, held-out reduced chi^2 of the
 calibrated and of the most probable model, training reduced chi^2, learning rate, the
-fitted channel nuisance (output gain and delay, input offset and gain), every point's reduced chi^2, model runs and wall time.
+fitted channel nuisance (output gain and delay), every point's reduced chi^2, model runs and
+wall time.
 
     python bench/bench_control_misfit.py                                  # the four truths
     python bench/bench_control_misfit.py --truths same fine

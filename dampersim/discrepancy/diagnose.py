@@ -2,8 +2,9 @@
 
 The data are the complex output orders 1-8 of every torsional point, compared with the
 model driven by the same measured input (:mod:`dampersim.discrepancy.likelihood`: weights
-from split-record repeatability and the model's discretisation, channel gain and delay
-fitted, robust loss). The calibration (six log scale factors under a prior) and every
+from split-record repeatability, the model's discretisation, its change under the input
+channel's zero and gain uncertainty and the mains pick-up (:mod:`dampersim.discrepancy.pickup`);
+channel gain and delay fitted; robust loss). The calibration (six log scale factors under a prior) and every
 candidate model are fitted on the training points; the models ("none", each effect,
 pairs) are weighed by Laplace evidence (:mod:`dampersim.discrepancy.selection`); the
 verdict asks whether the most probable model brings the misfit on held-out points (every
@@ -88,11 +89,14 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the same drive with each point's input moved up and down by that uncertainty
         err_in = {}
         sd_in = [input_mean_sd(float(np.mean(p.input_torque))) for p in every]
-        y_in = [drive.coefficients_of(runner, system, [drive.rezeroed([p], s * sd)[0] for p, sd in zip(every, sd_in)],
-                                      err_in) for s in (-1.0, 1.0)]
+        moved = [drive.rezeroed([p], s * sd)[0] for s in (-1.0, 1.0) for p, sd in zip(every, sd_in)]
+        y_moved = drive.coefficients_of(runner, system, moved, err_in)  # one map: up, then down
+        err_in = {i % len(every): msg for i, msg in err_in.items()}
+        y_in = (y_moved[:len(every)], y_moved[len(every):])
         left_out = {i: f"the model run with the parameter set as given failed ({err0[i]})" if i in err0 else
                     f"the discretisation check (two thirds of the spring segments) failed ({err_coarse[i]})"
-                    if i in err_coarse else f"the input check (input moved by {sd_in[i]:.3g} N m) failed ({err_in[i]})" for i in sorted({*err0, *err_coarse, *err_in})}
+                    if i in err_coarse else f"the input check (input moved by {sd_in[i]:.3g} N m) failed ({err_in[i]})"
+                    for i in sorted({*err0, *err_coarse, *err_in})}
         problems += [drive.run_problem(every[i], f"{why}; the point is left out of the calibration, the effect fits and "
                                        "the verdict") for i, why in left_out.items()]
         keep = [i for i in range(len(every)) if i not in left_out]
@@ -110,7 +114,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the displayed noise floor [N m] (amplitudes): repeatability, gain tolerance and
         # discretisation change as RMS over the campaign; the verdict uses the likelihood
         floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2 + _rms(model_diff) ** 2)
-        mains = pickup.pickup_sigma(pts, repeat, drive.ORDERS)
+        mains = pickup.pickup_sigma(pts, drive.ORDERS)
         sigma = cell_sigma(repeat, model_diff, meas_c, mains, offset_change)
         lik = Likelihood(meas_c, sigma, [p.speed for p in pts], drive.ORDERS)
 

@@ -28,11 +28,11 @@ RAMP_FILTER_HZ = 10.0  # [thesis] §3.4: loops low-passed at 10 Hz
 #: start-up, before the record begins: a rig records in steady running, and the start-up
 #: leaves a transient of a lightly damped low-frequency mode of damper and rig. Measured
 #: against noise-free synthetic records of the model itself, taken 1 s after their start-up
-#: (as tests/discrepancy/test_drive_startup.py does, at tc_1600, tc_2800, map_900_150,
-#: map_1200_50 and map_1500_350): the largest order error was 0.44 N m
-#: (order 6, 10.4 N m, at 2800 rpm) with no settling, 0.24 N m after 0.25 s, 0.11 N m after
-#: 0.5 s and 0.007 N m after 1 s. 0.5 s costs 31 % more simulated time per run (2.1 s for a
-#: 1 s record); what it leaves is about 1 % of an order.
+#: (``python bench/bench_drive_startup.py --points tc_1600 tc_2800 map_900_150 map_1200_50
+#: map_1500_350 --settle S``): the largest order errors were 0.61 N m (order 2, 23 N m, at
+#: 1500 rpm and 350 N m) and 0.44 N m (order 6, 10.4 N m, at 2800 rpm) with S = 0, and 0.13
+#: and 0.11 N m with S = 0.5. 0.5 s costs 31 % more simulated time per run (2.1 s for a 1 s
+#: record); what it leaves is about 1 % of an order.
 DRIVE_SETTLE = 0.5
 
 

@@ -4,37 +4,44 @@ A rig's torque amplifiers pick up the mains (50 or 60 Hz and its harmonics) with
 their own in every record. Where a mains line falls on an engine order (50 Hz is order 2 at
 1500 rpm, 150 Hz order 5 at 1800 rpm) it adds to that order's coefficient a component the
 model cannot produce and the split-half repeatability cannot see (it is the same in both
-halves). Where it falls between the orders, the order tracking does not see it at all
-(:mod:`dampersim.analysis.ordertrack`: a component a whole number of bins, or more than
-one bin, away from an order bin does not leak into it through the Hann window).
+halves). Where it falls between the orders, the order tracking hardly sees it
+(:mod:`dampersim.analysis.ordertrack`: through its Hann window a component a whole number
+of bins other than +-1 away from an order bin does not leak into it, and between whole
+bins little does: 2.4 % at 2.5 bins, 0.84 % at most beyond 3 bins).
 
 So the pick-up is measured where it is harmless and carried where it is not:
 
 1. for every line frequency F of MAINS_HZ and every torsional point whose record leaves
    F at least CLEAR_BINS frequency bins (1 / record length) from every engine order, half
    orders included (a four-stroke engine's cycle is two revolutions, and the damper's
-   non-linearity carries its half orders up the spectrum), the
-   output channel's line coefficient at F (Hann window over the whole record; the
-   amplitude of a sinusoid at F). Its noise is taken as the point's median split-half
-   variance over its orders (the same Hann estimate over the same record);
+   non-linearity carries its half orders up the spectrum), the output channel's line
+   coefficient at F (Hann window over the whole record: the complex amplitude of a
+   sinusoid at F) and its noise, from the record's two halves read at F on the whole
+   record's time origin (a steady line gives both halves the same coefficient; half their
+   difference has the variance of the whole record's estimate);
 2. the line's power A^2 is the median over those points of |coefficient|^2 less the
    median noise variance, kept only when the median |coefficient|^2 exceeds SIGNIFICANT^2
    times that noise (a line that cannot be told from the noise is already in the noise
    term), and taken as 0 when fewer than MIN_CLEAR_POINTS points are clear;
 3. a cell (point, order k) gets the variance A^2 |W(d)|^2, where d = (F / f_rot - k) N is
    the line's distance in bins from order k's bin over the point's N tracked revolutions
-   and W the Hann window's response (1 at d = 0, 1/2 at d = +-1, 0 at other whole d).
+   at their mean speed f_rot, and W the Hann window's response (1 at d = 0, 1/2 at
+   d = +-1, 0 at other whole d). A point without a speed channel has its orders read as
+   band energies at the nominal speed (:func:`dampersim.signal.order_amplitudes`), which take
+   in a line anywhere near the order: it gets the whole A^2 where |d| <= NO_TRACK_BINS.
 
 The pick-up is a variance, not a fitted nuisance: its phase is random from record to record,
 so one amplitude per line is all a campaign can know about it. The input channel's pick-up
 is not carried: it drives the model, which answers with the damper's small transfer at the
-line frequency (the 18/8 set at 1500 rpm, 0.13 N m of 50 Hz on its input: its orders moved
-by at most 0.014 N m at 350 N m and 0.03 N m at 150 N m, at or below a record's order
-uncertainty of 0.02-0.05 N m there).
+line frequency (tests/discrepancy/test_input_channel.py: 0.13 N m of 50 Hz on the input of
+the 18/8 set at 1500 rpm and 350 N m moves its orders by 0.021 N m at most, at or below a
+record's order uncertainty there).
 Units: frequency [Hz], torque [N m].
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -45,15 +52,19 @@ from dampersim.discrepancy import tracking
 MAINS_HZ = (50.0, 100.0, 150.0, 60.0, 120.0, 180.0)
 #: a point is clear of the engine orders at a line when the line is at least this many
 #: frequency bins (1 / record length) from every whole and half order: the Hann window's
-#: leakage there is below 1.3 % of that order's amplitude
+#: leakage from an order there is at most 0.84 % of its amplitude
 CLEAR_BINS = 3.0
 #: a line is carried only when its amplitude over the clear points exceeds this many times the
-#: noise of a coefficient
+#: noise of its coefficient
 SIGNIFICANT = 2.0
-#: fewest clear points to estimate a line from
-MIN_CLEAR_POINTS = 2
+#: fewest clear points to estimate a line from (the median of fewer is one point's word)
+MIN_CLEAR_POINTS = 3
 #: highest engine order considered when checking a point is clear of the orders
 MAX_ORDER = 40.0
+#: without a speed channel, a line within this many bins of an order counts in full (the
+#: band read by dampersim.signal.order_amplitudes is 1.5 bins or 1 % of the order's
+#: frequency each side, plus the window's main lobe)
+NO_TRACK_BINS = 3.5
 
 
 def hann_response(d) -> np.ndarray:
@@ -67,14 +78,23 @@ def hann_response(d) -> np.ndarray:
     return np.where(near_one, 0.5, w)
 
 
-def line_coefficient(point, freq_hz: float) -> complex:
-    """Complex amplitude [N m] of a sinusoid at ``freq_hz`` in the point's output torque,
-    read with a periodic Hann window over the whole record (mean removed)."""
-    x = np.asarray(point.output_torque, dtype=float)
+def line_coefficient(point, freq_hz: float, part: slice = slice(None)) -> complex:
+    """Complex amplitude [N m] of a sinusoid at ``freq_hz`` in ``part`` of the point's output
+    torque (mean removed), read with a periodic Hann window over that part and phased on the
+    whole record's first sample."""
+    x = np.asarray(point.output_torque, dtype=float)[part]
     t = np.asarray(point.time, dtype=float)
+    t0, t = t[0], t[part]
     n = len(x)
     w = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
-    return complex(2.0 * np.sum(w * (x - x.mean()) * np.exp(-2j * np.pi * freq_hz * (t - t[0]))) / np.sum(w))
+    return complex(2.0 * np.sum(w * (x - x.mean()) * np.exp(-2j * np.pi * freq_hz * (t - t0))) / np.sum(w))
+
+
+def line_noise(point, freq_hz: float) -> float:
+    """Standard deviation [N m] of :func:`line_coefficient` over the whole record: half the
+    difference of the two halves' coefficients."""
+    n = len(point.output_torque) // 2
+    return 0.5 * abs(line_coefficient(point, freq_hz, slice(0, n)) - line_coefficient(point, freq_hz, slice(n, 2 * n)))
 
 
 def _clear(point, freq_hz: float) -> bool:
@@ -85,45 +105,42 @@ def _clear(point, freq_hz: float) -> bool:
     return freq_hz < nyquist and bool(np.all(np.abs(freq_hz - k * f_rot) * length >= CLEAR_BINS))
 
 
-def line_powers(points, repeat) -> dict:
+def line_powers(points) -> dict:
     """{line frequency [Hz]: A^2 [N m^2]} of the campaign's output channel (module
-    docstring, steps 1-2); repeat: the points' split-half standard deviations (points x
-    orders) [N m]."""
-    noise = np.median(np.asarray(repeat, dtype=float) ** 2, axis=1)
+    docstring, steps 1-2)."""
     out = {}
     for f in MAINS_HZ:
-        rows = [i for i, p in enumerate(points) if _clear(p, f)]
+        rows = [p for p in points if _clear(p, f)]
         if len(rows) < MIN_CLEAR_POINTS:
             out[f] = 0.0
             continue
-        power = float(np.median([abs(line_coefficient(points[i], f)) ** 2 for i in rows]))
-        floor = float(np.median(noise[rows]))
+        power = float(np.median([abs(line_coefficient(p, f)) ** 2 for p in rows]))
+        floor = float(np.median([line_noise(p, f) ** 2 for p in rows]))
         out[f] = power - floor if power > SIGNIFICANT ** 2 * floor else 0.0
     return out
 
 
-def pickup_sigma(points, repeat, orders) -> np.ndarray:
+def pickup_sigma(points, orders) -> np.ndarray:
     """Standard deviation [N m] (points x orders) the mains pick-up adds to every order cell
     (module docstring, step 3)."""
-    powers = line_powers(points, repeat)
+    powers = {f: a2 for f, a2 in line_powers(points).items() if a2 > 0.0}
     orders = np.asarray(orders, dtype=float)
     var = np.zeros((len(points), len(orders)))
     for i, p in enumerate(points):
-        f_rot = p.speed / (2.0 * np.pi)
-        n_rev = _revolutions(p, orders)
+        if not powers:
+            break
+        tracked = getattr(p, tracking.SPEED_CHANNEL, None) is not None
+        if tracked:
+            read = tracking.tracked(p, p.output_torque, orders)
+            f_rot, n_rev = read.mean_speed / (2.0 * math.pi), float(read.revolutions)
+        else:
+            f_rot = p.speed / (2.0 * math.pi)
+            n_rev = float(p.time[-1] - p.time[0]) * f_rot
         for f, a2 in powers.items():
-            if a2 > 0.0:
-                var[i] += a2 * hann_response((f / f_rot - orders) * n_rev) ** 2
+            d = (f / f_rot - orders) * n_rev
+            var[i] += a2 * (hann_response(d) ** 2 if tracked else (np.abs(d) <= NO_TRACK_BINS))
     return np.sqrt(var)
 
 
-def _revolutions(point, orders) -> float:
-    """Revolutions the point's orders are read over (those of its tracked output; the
-    record's length times the rotation frequency without a speed channel)."""
-    if getattr(point, tracking.SPEED_CHANNEL, None) is None:
-        return float(point.time[-1] - point.time[0]) * point.speed / (2.0 * np.pi)
-    return float(tracking.tracked(point, point.output_torque, orders).revolutions)
-
-
-__all__ = ["MAINS_HZ", "CLEAR_BINS", "SIGNIFICANT", "MIN_CLEAR_POINTS", "hann_response", "line_coefficient",
-           "line_powers", "pickup_sigma"]
+__all__ = ["MAINS_HZ", "CLEAR_BINS", "SIGNIFICANT", "MIN_CLEAR_POINTS", "NO_TRACK_BINS", "hann_response",
+           "line_coefficient", "line_noise", "line_powers", "pickup_sigma"]

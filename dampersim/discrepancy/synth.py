@@ -47,9 +47,9 @@ FINE_SEGMENTS = 4.0 / 3.0
 MAX_SEGMENTS = next(f.metadata["hi"] for f in dataclasses.fields(Solver) if f.name == "outer_segments")
 RAMP_PROTOCOL = "full-450"  # [thesis] Table 3.1: 0 -> 450 -> -180 -> 0 N m, 50 N m/s, 2 s hold
 #: time [s] the synthetic rig runs at full excitation between its start-up and the record:
-#: the start-up's transient (a lightly damped low-frequency mode of damper and rig, decaying
-#: by about 100x in 0.5 s at 900 rpm) must be gone, as on a rig that records in steady
-#: running; until this setting the record began right after the start-up and its first
+#: the start-up's transient (a lightly damped low-frequency mode of damper and rig) must be
+#: gone, as on a rig that records in steady running (twice the diagnosis's
+#: drive.DRIVE_SETTLE, whose measured figures are given there); until this setting the record began right after the start-up and its first
 #: half carried the transient, which also inflated the split-half repeatability
 TRUTH_SETTLE = 1.0
 #: parameters of [thesis] §6.1 that are estimated rather than measured (perturbed in the truth)

@@ -29,9 +29,9 @@ class MeasuredTorque:
     record backwards: that joins without a jump, but the reversed phases excite the lightly
     damped low-frequency mode of damper and rig, whose transient still ran 0.5 s into the
     record. Driving the model with a noise-free synthetic record of itself at 900 rpm and
-    150 N m (tests/discrepancy/test_drive_startup.py), the output differed from the record
-    by 25 N m RMS in the first quarter second and the second order by 1.8 N m (of 44) over
-    the 1 s record; with the loop 0.5 N m RMS and 0.008 N m.
+    150 N m (``python bench/bench_drive_startup.py --points map_900_150``), the second order
+    came back 1.8 N m off (of 45) played backwards, and 0.003 N m with the loop and the
+    diagnosis's settling.
     """
 
     speed: float
