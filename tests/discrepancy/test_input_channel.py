@@ -15,6 +15,20 @@ from dampersim.parameters import at_thesis_segments
 OFFSET = 1.5  # [N m]: within the synthetic DAQ's +-2 N m; likelihood.INPUT_OFFSET_SD
 
 
+def _record_of_itself(tmp_path, monkeypatch, point_id):
+    """A noise-free synthetic record (seed 3, 0.8 s, no gain error) of the diagnosed 18/8 set
+    itself (no perturbation, no finer truth) at ``point_id``, and that set at its diagnosis
+    step: (point, system)."""
+    same = synth.truth_system
+    monkeypatch.setattr(synth, "truth_system", lambda *a, **k: same(*a, **{**k, "fine": False}))
+    out = tmp_path / "campaign"
+    base = at_thesis_segments()
+    synth.synthesize(str(out), effects=[], perturb=0.0, noise_db=-60.0, seed=3, points=[point_id], record=0.8,
+                     gain_error=0.0, base=base)
+    (p,) = read_campaign(str(out)).torsional
+    return p, drive.diagnosis_system(base)
+
+
 def test_an_input_offset_shows_at_350_nm_and_rezeroing_removes_it(tmp_path, monkeypatch):
     """The truth is the diagnosed 18/8 model itself (no perturbation, no noise), recorded at
     1800 rpm and 350 N m, where the mean torque sits near a knee of the characteristic. Drive
@@ -25,14 +39,7 @@ def test_an_input_offset_shows_at_350_nm_and_rezeroing_removes_it(tmp_path, monk
     drive's own error (0.066 N m; limit 0.1). drive.rezeroed with the true offset must give
     back the clean drive's orders (limit 0.01 N m: the two runs then see the same input up to
     rounding)."""
-    same = synth.truth_system
-    monkeypatch.setattr(synth, "truth_system", lambda *a, **k: same(*a, **{**k, "fine": False}))
-    out = tmp_path / "campaign"
-    base = at_thesis_segments()
-    synth.synthesize(str(out), effects=[], perturb=0.0, noise_db=-60.0, seed=3, points=["map_1800_350"], record=0.8,
-                     gain_error=0.0, base=base)
-    (p,) = read_campaign(str(out)).torsional
-    system = drive.diagnosis_system(base)
+    p, system = _record_of_itself(tmp_path, monkeypatch, "map_1800_350")
     clean = drive.simulate_point(system, p)["coefficients"]
     shifted = dataclasses.replace(p, input_torque=p.input_torque + OFFSET)
     moved = drive.simulate_point(system, shifted)["coefficients"]
@@ -53,14 +60,7 @@ def test_mains_hum_on_the_input_moves_the_model_little(tmp_path, monkeypatch):
     uncertainty of 0.02-0.05 N m with the usual 1 N m sensor noise; limit 0.03."""
     from dampersim.discrepancy import daq as D
 
-    same = synth.truth_system
-    monkeypatch.setattr(synth, "truth_system", lambda *a, **k: same(*a, **{**k, "fine": False}))
-    out = tmp_path / "campaign"
-    base = at_thesis_segments()
-    synth.synthesize(str(out), effects=[], perturb=0.0, noise_db=-60.0, seed=3, points=["map_1500_350"], record=0.8,
-                     gain_error=0.0, base=base)
-    (p,) = read_campaign(str(out)).torsional
-    system = drive.diagnosis_system(base)
+    p, system = _record_of_itself(tmp_path, monkeypatch, "map_1500_350")
     hum = D.DaqCorruption(hum=D.MainsHum(input_nm=0.13, output_nm=0.0, third_harmonic=0.0, seed=1))
     clean = drive.simulate_point(system, p)["coefficients"]
     hummed = drive.simulate_point(system, D.corrupt_point(p, hum, 0))["coefficients"]
@@ -103,14 +103,9 @@ def _campaign():
     return F.campaign([F.point(*q) for q in F.POINTS])
 
 
-def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(monkeypatch):
-    """diagnose passes cell_sigma half the change of every point's coefficients when its input
-    moves up and down by likelihood.input_mean_sd of its mean torque: with the stand-in's
-    1 % per N m that is that many per cent of each coefficient. Without the wiring the
-    captured term would be None or 0."""
-    from dampersim.discrepancy import diagnose as dg
-    from dampersim.discrepancy.likelihood import input_mean_sd
-
+def _spy_on_cell_sigma(monkeypatch, dg):
+    """Record the input-check term diagnose passes to cell_sigma (in the returned dict's
+    "offset") and pass everything on."""
     seen = {}
     real = dg.cell_sigma
 
@@ -119,6 +114,18 @@ def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(
         return real(repeat, model_change, meas, pickup, offset_change)
 
     monkeypatch.setattr(dg, "cell_sigma", spy)
+    return seen
+
+
+def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(monkeypatch):
+    """diagnose passes cell_sigma half the change of every point's coefficients when its input
+    moves up and down by likelihood.input_mean_sd of its mean torque: with the stand-in's
+    1 % per N m that is that many per cent of each coefficient. Without the wiring the
+    captured term would be None or 0."""
+    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy.likelihood import input_mean_sd
+
+    seen = _spy_on_cell_sigma(monkeypatch, dg)
     monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
     camp = _campaign()
     dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
@@ -133,14 +140,7 @@ def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(
 def test_a_point_whose_input_check_fails_is_left_out_and_reported(monkeypatch):
     from dampersim.discrepancy import diagnose as dg
 
-    seen = {}
-    real = dg.cell_sigma
-
-    def spy(repeat, model_change, meas, pickup=None, offset_change=None):
-        seen["offset"] = offset_change
-        return real(repeat, model_change, meas, pickup, offset_change)
-
-    monkeypatch.setattr(dg, "cell_sigma", spy)
+    seen = _spy_on_cell_sigma(monkeypatch, dg)
     monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model(fail_when_moved="p4"))
     d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
     assert [(q["point"], q["field"]) for q in d.problems] == [("p4", "model")]
