@@ -104,13 +104,13 @@ def _campaign():
 
 
 def _spy_on_cell_sigma(monkeypatch, dg):
-    """Record the input-check term diagnose passes to cell_sigma (in the returned dict's
-    "offset") and pass everything on."""
+    """Record the input-check and pick-up terms diagnose passes to cell_sigma (the returned
+    dict's "offset" and "pickup") and pass everything on."""
     seen = {}
     real = dg.cell_sigma
 
     def spy(repeat, model_change, meas, pickup=None, offset_change=None):
-        seen["offset"] = offset_change
+        seen["offset"], seen["pickup"] = offset_change, pickup
         return real(repeat, model_change, meas, pickup, offset_change)
 
     monkeypatch.setattr(dg, "cell_sigma", spy)
@@ -147,3 +147,17 @@ def test_a_point_whose_input_check_fails_is_left_out_and_reported(monkeypatch):
     assert "input check" in d.problems[0]["message"] and "left out" in d.problems[0]["message"]
     assert "p4" not in {p["id"] for p in d.points} and d.verdict != dg.INSUFFICIENT
     assert np.asarray(seen["offset"]).shape == (len(d.points), len(drive.ORDERS))  # the kept points' rows
+
+
+def test_the_diagnosis_passes_the_mains_pickup_to_the_cell_uncertainty(monkeypatch):
+    """diagnose hands cell_sigma what pickup.pickup_sigma gives for the kept points: with a
+    stand-in pick-up of 0.1 N m on every cell the spy must receive exactly that (without the
+    wiring it would receive None)."""
+    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy import pickup
+
+    seen = _spy_on_cell_sigma(monkeypatch, dg)
+    monkeypatch.setattr(pickup, "pickup_sigma", lambda pts, orders: np.full((len(pts), len(orders)), 0.1))
+    monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
+    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
+    assert np.asarray(seen["pickup"]) == pytest.approx(np.full((len(d.points), len(drive.ORDERS)), 0.1))
