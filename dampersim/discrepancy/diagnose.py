@@ -89,7 +89,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the same drive with each point's input moved up and down by that uncertainty
         err_in = {}
         sd_in = [input_mean_sd(float(np.mean(p.input_torque))) for p in every]
-        moved = [drive.rezeroed([p], s * sd)[0] for s in (-1.0, 1.0) for p, sd in zip(every, sd_in)]
+        moved = [drive.rezeroed(p, s * sd) for s in (-1.0, 1.0) for p, sd in zip(every, sd_in)]
         y_moved = drive.coefficients_of(runner, system, moved, err_in)  # one map: up, then down
         err_in = {i % len(every): msg for i, msg in err_in.items()}
         y_in = (y_moved[:len(every)], y_moved[len(every):])

@@ -70,14 +70,14 @@ def diagnosis_system(system):
     return dataclasses.replace(system, solver=dataclasses.replace(system.solver, time_step=dt))
 
 
-def rezeroed(points, offset_nm: float = 0.0, gain: float = 1.0) -> list:
-    """``points`` with the input torque channel corrected for a zero offset ``offset_nm``
+def rezeroed(point, offset_nm: float = 0.0, gain: float = 1.0):
+    """``point`` with its input torque channel corrected for a zero offset ``offset_nm``
     [N m] and a gain ``gain`` [-] (recorded = gain x true + offset, so true = (recorded -
     offset) / gain); the output channel, which the likelihood compares, is left as it is.
-    The points themselves when there is nothing to correct."""
+    The point itself when there is nothing to correct."""
     if offset_nm == 0.0 and gain == 1.0:
-        return list(points)
-    return [dataclasses.replace(p, input_torque=(np.asarray(p.input_torque) - offset_nm) / gain) for p in points]
+        return point
+    return dataclasses.replace(point, input_torque=(np.asarray(point.input_torque) - offset_nm) / gain)
 
 
 def simulate_point(system, point) -> dict:

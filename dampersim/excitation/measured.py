@@ -21,8 +21,8 @@ class MeasuredTorque:
     ``speed`` is the nominal shaft speed [rad/s].
 
     The fluctuation faded in is the record itself played in a loop, ending where the record
-    begins: the loop is the longest stretch from the record's start whose end matches the
-    record's first revolution best (:func:`loop_length`), so that the start-up carries the
+    begins: the loop is the stretch from the record's start, at least half of it long, whose
+    end matches the record's first revolution best (:func:`loop_length`), so that the start-up carries the
     record's orders at their own phases and joins it without a jump. The model then enters
     the record in the state the record was taken in. Here we differ from the thesis
     ([thesis] §6.2.1 gives no lead-in detail) and from our first version, which played the
@@ -80,11 +80,14 @@ class MeasuredTorque:
             env = (t >= self.mean_ramp).astype(float)
         # during the start-up, fade in the record's own fluctuation played in a loop that
         # ends where the record begins (class docstring); a record too short for a loop is
-        # played backwards instead, which at least joins it without a jump
+        # played backwards instead, which at least joins it without a jump, and forwards
+        # again from its start when the lead-in is longer than the record
         if self._loop is not None:
             lead = np.interp(np.mod(t - self.steady_start, self._loop), self.time, self.torque_samples) - mean
         else:
-            lead = np.interp(self.steady_start - t, self.time, self.torque_samples) - mean
+            span = float(self.time[-1])
+            back = np.mod(self.steady_start - t, 2.0 * span)
+            lead = np.interp(span - np.abs(back - span), self.time, self.torque_samples) - mean
         return np.where(t >= self.steady_start, rec, ramp + env * lead)
 
 

@@ -43,7 +43,7 @@ def test_an_input_offset_shows_at_350_nm_and_rezeroing_removes_it(tmp_path, monk
     clean = drive.simulate_point(system, p)["coefficients"]
     shifted = dataclasses.replace(p, input_torque=p.input_torque + OFFSET)
     moved = drive.simulate_point(system, shifted)["coefficients"]
-    (back,) = drive.rezeroed([shifted], OFFSET, 1.0)
+    back = drive.rezeroed(shifted, OFFSET)
     restored = drive.simulate_point(system, back)["coefficients"]
     assert np.abs(moved - clean).max() > 0.5, np.abs(moved - clean)
     assert np.abs(restored - clean).max() < 0.01, np.abs(restored - clean)
@@ -72,9 +72,9 @@ def test_rezeroing_divides_out_the_gain_and_leaves_the_output_alone():
     p = MeasuredPoint(id="p", kind="torsional", speed_rpm=1000.0, mean_torque_nm=100.0, sample_rate_hz=10.0, time=t,
                       input_torque=1.02 * (100.0 + t) + 3.0, output_torque=50.0 + t, input_speed_rpm=None,
                       output_speed_rpm=None)
-    (q,) = drive.rezeroed([p], 3.0, 1.02)
+    q = drive.rezeroed(p, 3.0, 1.02)
     assert np.allclose(q.input_torque, 100.0 + t) and q.output_torque is p.output_torque
-    assert drive.rezeroed([p])[0] is p
+    assert drive.rezeroed(p) is p
 
 
 def _input_sensitive_model(fail_when_moved=None):

@@ -92,3 +92,13 @@ def test_the_start_up_loops_the_record_over_whole_engine_cycles():
     assert before[1] == pytest.approx(looped, abs=1e-6)  # the record, looped
     # fewer than four revolutions: no loop; the record is played backwards as before
     assert loop_length(t[:800], y[:800], speed) is None
+    short = MeasuredTorque(speed=speed, time=t[:800], torque_samples=y[:800], settle=0.5)
+    assert short._loop is None
+    span = t[799]
+    # with the 0.5 s settling the lead-in (1.1 s) is longer than the 0.16 s record: it plays
+    # backwards from the record's start, then forwards again from its other end, never
+    # holding a sample (before: every time earlier than 0.16 s ahead of the record held y[799])
+    for ago in (0.05, span + 0.05, 2 * span + 0.05):
+        pos = ago if ago <= span else (2 * span - ago if ago <= 2 * span else ago - 2 * span)
+        got = short.torque(np.array([short.steady_start - ago]))[0]
+        assert got == pytest.approx(np.interp(pos, t[:800], y[:800]), abs=1e-9), ago  # full amplitude (settling)
