@@ -111,10 +111,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         held = [i for i in range(len(pts)) if i % 3 == 1]
         train = [i for i in range(len(pts)) if i % 3 != 1]
         ptr = [pts[i] for i in train]
-        # the displayed noise floor [N m] (amplitudes): repeatability, gain tolerance and
-        # discretisation change as RMS over the campaign; the verdict uses the likelihood
-        floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2 + _rms(model_diff) ** 2)
         mains = pickup.pickup_sigma(pts, drive.ORDERS)
+        # the displayed noise floor [N m] (amplitudes): repeatability, gain tolerance,
+        # discretisation change, input channel and mains pick-up as RMS over the campaign;
+        # the verdict uses the likelihood
+        floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2 + _rms(model_diff) ** 2
+                          + _rms(offset_change) ** 2 + _rms(mains) ** 2)
         sigma = cell_sigma(repeat, model_diff, meas_c, mains, offset_change)
         lik = Likelihood(meas_c, sigma, [p.speed for p in pts], drive.ORDERS)
 

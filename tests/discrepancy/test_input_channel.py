@@ -128,13 +128,19 @@ def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(
     seen = _spy_on_cell_sigma(monkeypatch, dg)
     monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
     camp = _campaign()
-    dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
+    d = dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
     from tests.discrepancy import fake_rig as F
 
     system = drive.diagnosis_system(dg.default_parameters())
     unmoved = np.array([F.fake_model()(system, p)["coefficients"] for p in camp.torsional])
     sd = np.array([[input_mean_sd(float(np.mean(p.input_torque)))] for p in camp.torsional])
     assert np.asarray(seen["offset"]) == pytest.approx(0.01 * sd * np.abs(unmoved), rel=1e-9)
+    # the displayed noise floor carries the term as a root sum of squares: against the same
+    # stand-in without the input sensitivity (which gives the same unmoved orders)
+    with_term, rms = d.noise_floor_nm, float(np.sqrt(np.mean(np.asarray(seen["offset"]) ** 2)))
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model())
+    without = dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False).noise_floor_nm
+    assert with_term ** 2 - without ** 2 == pytest.approx(rms ** 2, rel=1e-6)
 
 
 def test_a_point_whose_input_check_fails_is_left_out_and_reported(monkeypatch):
@@ -157,7 +163,12 @@ def test_the_diagnosis_passes_the_mains_pickup_to_the_cell_uncertainty(monkeypat
     from dampersim.discrepancy import pickup
 
     seen = _spy_on_cell_sigma(monkeypatch, dg)
-    monkeypatch.setattr(pickup, "pickup_sigma", lambda pts, orders: np.full((len(pts), len(orders)), 0.1))
     monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
-    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
+    floors = {}
+    for level in (0.0, 0.1):
+        monkeypatch.setattr(pickup, "pickup_sigma", lambda pts, orders, v=level: np.full((len(pts), len(orders)), v))
+        d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
+        floors[level] = d.noise_floor_nm
     assert np.asarray(seen["pickup"]) == pytest.approx(np.full((len(d.points), len(drive.ORDERS)), 0.1))
+    # the displayed noise floor carries it too, as a root sum of squares
+    assert floors[0.1] ** 2 - floors[0.0] ** 2 == pytest.approx(0.1 ** 2, rel=1e-6)
