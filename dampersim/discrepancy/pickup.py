@@ -12,8 +12,8 @@ bins little does: 2.4 % at 2.5 bins, 0.84 % at most beyond 3 bins).
 So the pick-up is measured where it is harmless and carried where it is not:
 
 1. for every line frequency F of MAINS_HZ and every torsional point whose record leaves
-   F at least CLEAR_BINS frequency bins (1 / record length) from every engine order, half
-   orders included (a four-stroke engine's cycle is two revolutions, and the damper's
+   F at least CLEAR_BINS frequency bins (1 / record length) from every engine order (at
+   the record's measured mean speed where it has a speed channel), half orders included (a four-stroke engine's cycle is two revolutions, and the damper's
    non-linearity carries its half orders up the spectrum), the output channel's line
    coefficient at F (Hann window over the whole record: the complex amplitude of a
    sinusoid at F) and its noise, from the record's two halves read at F on the whole
@@ -98,7 +98,10 @@ def line_noise(point, freq_hz: float) -> float:
 
 
 def _clear(point, freq_hz: float) -> bool:
-    f_rot = point.speed / (2.0 * np.pi)
+    # the orders sit at the record's measured mean speed where it has a speed channel (the
+    # rig's nominal speed can be off by more than a bin at the high orders)
+    w = tracking.point_speed(point)
+    f_rot = (float(np.mean(w)) if w is not None else point.speed) / (2.0 * np.pi)
     length = float(point.time[-1] - point.time[0])
     nyquist = 0.5 * point.sample_rate_hz
     k = np.arange(0.5, MAX_ORDER + 0.25, 0.5)  # whole and half orders

@@ -94,3 +94,13 @@ def test_a_point_without_a_speed_channel_takes_the_line_in_its_band():
     sig = pickup.pickup_sigma(pts[:-1] + [bare], ORDERS)
     a = math.sqrt(pickup.line_powers(pts[:-1] + [bare])[50.0])
     assert sig[-1, 1] == pytest.approx(a) and np.all(np.delete(sig[-1], 1) == 0.0)
+
+
+def test_clearance_is_judged_at_the_measured_speed():
+    """A point recorded at 1200 rpm under a nominal 1800 rpm (a manifest off, the rig's speed
+    channel right): 50 Hz is order 2.5 of the measured speed, not clear; without the speed
+    channel only the nominal speed is known, where it is clear."""
+    p = _point(1200, 0.0, 0)
+    mislabelled = dataclasses.replace(p, speed_rpm=1800.0)
+    assert not pickup._clear(mislabelled, 50.0)
+    assert pickup._clear(dataclasses.replace(mislabelled, input_speed_rpm=None, output_speed_rpm=None), 50.0)
