@@ -28,7 +28,8 @@ So the pick-up is measured where it is harmless and carried where it is not:
    at their mean speed f_rot, and W the Hann window's response (1 at d = 0, 1/2 at
    d = +-1, 0 at other whole d). A point without a speed channel has its orders read as
    band energies at the nominal speed (:func:`dampersim.signal.order_amplitudes`), which take
-   in a line anywhere near the order: it gets the whole A^2 where |d| <= NO_TRACK_BINS.
+   in a line anywhere in the order's band: it gets the whole A^2 where |d| is within the
+   band's half width (:func:`band_half_width`).
 
 The pick-up is a variance, not a fitted nuisance: its phase is random from record to record,
 so one amplitude per line is all a campaign can know about it. The input channel's pick-up
@@ -46,6 +47,7 @@ import math
 import numpy as np
 
 from dampersim.discrepancy import tracking
+from dampersim.signal import HANN_HALF_LOBE_BINS, SEARCH_HALF_WIDTH_BINS, SEARCH_HALF_WIDTH_REL
 
 #: mains line frequencies looked for [Hz]: 50 and 60 Hz grids, fundamentals and the second and
 #: third harmonics (rectifiers, transformer saturation)
@@ -61,10 +63,6 @@ SIGNIFICANT = 2.0
 MIN_CLEAR_POINTS = 3
 #: highest engine order considered when checking a point is clear of the orders
 MAX_ORDER = 40.0
-#: without a speed channel, a line within this many bins of an order counts in full (the
-#: band read by dampersim.signal.order_amplitudes is 1.5 bins or 1 % of the order's
-#: frequency each side, plus the window's main lobe)
-NO_TRACK_BINS = 3.5
 
 
 def hann_response(d) -> np.ndarray:
@@ -76,6 +74,17 @@ def hann_response(d) -> np.ndarray:
     safe = np.where(near_one, 0.0, d)
     w = np.abs(np.sinc(safe) / (1.0 - safe * safe))
     return np.where(near_one, 0.5, w)
+
+
+def band_half_width(orders, n_rev: float) -> np.ndarray:
+    """Half width [bins] of the band :func:`dampersim.signal.order_amplitudes` reads around
+    each of ``orders`` in a record of ``n_rev`` revolutions, with its peak on the order: the
+    search half width (1.5 bins or 1 % of the order's frequency, whichever is wider) plus the
+    Hann main lobe, never beyond half the spacing to the next order (counting DC as order 0)."""
+    orders = np.asarray(orders, dtype=float)
+    limit = 0.5 * float(np.min(np.diff(np.concatenate(([0.0], np.sort(orders)))))) * n_rev
+    half = np.minimum(np.maximum(SEARCH_HALF_WIDTH_BINS, SEARCH_HALF_WIDTH_REL * orders * n_rev), limit)
+    return np.minimum(half + HANN_HALF_LOBE_BINS, limit)
 
 
 def line_coefficient(point, freq_hz: float, part: slice = slice(None)) -> complex:
@@ -141,9 +150,9 @@ def pickup_sigma(points, orders) -> np.ndarray:
             n_rev = float(p.time[-1] - p.time[0]) * f_rot
         for f, a2 in powers.items():
             d = (f / f_rot - orders) * n_rev
-            var[i] += a2 * (hann_response(d) ** 2 if tracked else (np.abs(d) <= NO_TRACK_BINS))
+            var[i] += a2 * (hann_response(d) ** 2 if tracked else (np.abs(d) <= band_half_width(orders, n_rev)))
     return np.sqrt(var)
 
 
-__all__ = ["MAINS_HZ", "CLEAR_BINS", "SIGNIFICANT", "MIN_CLEAR_POINTS", "NO_TRACK_BINS", "hann_response",
+__all__ = ["MAINS_HZ", "CLEAR_BINS", "SIGNIFICANT", "MIN_CLEAR_POINTS", "band_half_width", "hann_response",
            "line_coefficient", "line_noise", "line_powers", "pickup_sigma"]

@@ -104,3 +104,25 @@ def test_clearance_is_judged_at_the_measured_speed():
     mislabelled = dataclasses.replace(p, speed_rpm=1800.0)
     assert not pickup._clear(mislabelled, 50.0)
     assert pickup._clear(dataclasses.replace(mislabelled, input_speed_rpm=None, output_speed_rpm=None), 50.0)
+
+
+@pytest.mark.parametrize("d_bins, inside", [(15.0, True), (-15.0, True), (22.0, False), (3.0, True)])
+def test_the_band_without_a_speed_channel_is_the_order_reader_s(d_bins, inside):
+    """band_half_width is the band dampersim.signal.order_amplitudes reads: on a 10 s record
+    at 1200 rpm (200 revolutions) order 8's band is 1 % of 160 Hz plus the main lobe, 18
+    bins, far wider than the 1.5 + 2 bins of a short record. A line 15 bins from the order
+    adds its whole power to the order's reading, one 22 bins away none of it (a line at
+    whole bins leaks nothing through the Hann window beyond its main lobe)."""
+    from dampersim.signal import order_amplitudes
+
+    fs, rpm, record = 2000.0, 1200.0, 10.0
+    t = np.arange(int(record * fs)) / fs
+    f8 = 8 * rpm / 60.0
+    x = 5.0 * np.cos(2 * np.pi * f8 * t) + 1.0 * np.cos(2 * np.pi * (f8 + d_bins / record) * t + 0.3)
+    read = order_amplitudes(x, fs, rpm * math.pi / 30.0, ORDERS)[7]
+    band = pickup.band_half_width(ORDERS, rpm / 60.0 * record)[7]
+    assert band == pytest.approx(0.01 * f8 * record + 2.0)
+    assert (abs(d_bins) <= band) == inside
+    # 1e-3 relative: the other orders are absent, so only the window's leakage differs
+    assert read ** 2 == pytest.approx(26.0 if inside else 25.0, rel=1e-3)
+    assert pickup.band_half_width(ORDERS, 0.8 * rpm / 60.0)[0] == pytest.approx(3.5)  # a short record: 1.5 + 2 bins
