@@ -77,6 +77,8 @@ def input_mean_sd(mean_torque_nm: float) -> float:
     """Standard uncertainty [N m] of a record's mean input torque ``mean_torque_nm`` [N m]
     from the input channel's zero and gain (INPUT_OFFSET_SD, INPUT_GAIN_SD)."""
     return math.hypot(INPUT_OFFSET_SD, INPUT_GAIN_SD * mean_torque_nm)
+
+
 #: smallest cell uncertainty, as a share of the campaign's largest output order amplitude
 SIGMA_FLOOR_SHARE = 1e-3
 #: Huber threshold of the robust loss: a point's RMS standardised residual above
