@@ -27,6 +27,7 @@ wall time.
     python bench/bench_control_misfit.py --truths same fine
     python bench/bench_control_misfit.py --case ci-control --daq hum
     python bench/bench_control_misfit.py --case ci-absorber --daq none
+    python bench/bench_control_misfit.py --case ci-absorber --floor 1e-4   # another uncertainty floor
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ import os
 import tempfile
 import time
 
-from dampersim.discrepancy import synth
+from dampersim.discrepancy import likelihood, synth
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.jsonsafe import jsonable
@@ -97,7 +98,13 @@ def main(argv=None):
     ap.add_argument("--truths", nargs="+", choices=tuple(TRUTHS), default=list(TRUTHS), help="benchmark case only")
     ap.add_argument("--daq", default="random", help="CI cases only: none, random, or parts of the random chain")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--floor", type=float, default=None,
+                    help="the cell uncertainty's floor share (likelihood.SIGMA_FLOOR_SHARE) to diagnose with")
     args = ap.parse_args(argv)
+    if args.floor is not None:
+        if not args.floor >= 0.0:
+            ap.error(f"--floor {args.floor}: accepted is a share >= 0")
+        likelihood.SIGMA_FLOOR_SHARE = args.floor  # read at call time, in this process only
     if args.case == "benchmark":
         for name in args.truths:
             t = TRUTHS[name]
@@ -106,7 +113,7 @@ def main(argv=None):
             print(json.dumps(row), flush=True)
         return
     effects = [("pendulum_absorber", {"inertia": 0.002})] if args.case == "ci-absorber" else []
-    row = run(f"{args.case} daq={args.daq}", effects, 0.03, CI_SEED, CI_POINTS, 0.8, ci_daq(args.daq), True,
+    row = run(f"{args.case} daq={args.daq} floor={likelihood.SIGMA_FLOOR_SHARE:g}", effects, 0.03, CI_SEED, CI_POINTS, 0.8, ci_daq(args.daq), True,
               at_thesis_segments(), {"candidates": CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2},
               args.workers)
     print(json.dumps(row), flush=True)

@@ -123,19 +123,29 @@ def split_half_sigma(point, orders) -> np.ndarray:
     return np.where(driven & np.isfinite(ratio), ratio, 0.5 * np.abs(o1 - o2))
 
 
-def cell_sigma(repeat, model_change, meas, pickup=None, offset_change=None) -> np.ndarray:
-    """Complex standard deviation [N m] of every (point, order) cell: repeatability (the mean
-    of the cell's split-half variance and the per-order median over points), the model's
-    discretisation change, the mains pick-up (``pickup``, same shape, or None), the model's
-    change under the input channel's uncertainty (``offset_change``, or None) and a floor
-    of SIGMA_FLOOR_SHARE of the largest measured order (module docstring)."""
+def sigma_variances(repeat, model_change, meas, pickup=None, offset_change=None) -> dict:
+    """The terms of :func:`cell_sigma`, each a variance [N m^2] per (point, order) cell:
+    ``repeat`` (the mean of the cell's split-half variance and the per-order median over
+    points), ``model`` (the discretisation change), ``mains`` (``pickup``), ``input`` (the
+    model's change under the input channel's uncertainty, ``offset_change``) and ``floor``
+    (SIGMA_FLOOR_SHARE of the largest measured order); absent terms are zeros."""
     repeat = np.asarray(repeat, dtype=float)
     # the square of a complex Gaussian's magnitude is exponential: its median is ln 2 of its mean
     pooled = np.median(repeat ** 2, axis=0, keepdims=True) / math.log(2.0)
     floor = SIGMA_FLOOR_SHARE * max(float(np.nanmax(np.abs(meas))), 1e-9)
     model_change = np.nan_to_num(np.asarray(model_change, dtype=float), nan=0.0)
-    extra = sum(np.asarray(v, dtype=float) ** 2 for v in (pickup, offset_change) if v is not None)
-    return np.sqrt(0.5 * (repeat ** 2 + pooled) + model_change ** 2 + extra + floor ** 2)
+    zero = np.zeros(repeat.shape)
+    return {"repeat": 0.5 * (repeat ** 2 + pooled), "model": model_change ** 2,
+            "mains": zero if pickup is None else np.asarray(pickup, dtype=float) ** 2,
+            "input": zero if offset_change is None else np.asarray(offset_change, dtype=float) ** 2,
+            "floor": np.full(repeat.shape, floor ** 2)}
+
+
+def cell_sigma(repeat, model_change, meas, pickup=None, offset_change=None) -> np.ndarray:
+    """Complex standard deviation [N m] of every (point, order) cell: the root of the sum of
+    :func:`sigma_variances` (module docstring)."""
+    v = sigma_variances(repeat, model_change, meas, pickup, offset_change)
+    return np.sqrt(v["repeat"] + v["model"] + (v["mains"] + v["input"]) + v["floor"])
 
 
 def robust_weights(point_chi2, n_per_point: int):
@@ -281,5 +291,5 @@ class Likelihood:
         return float(np.sum(self.point_chi2(y, rows, nuisance)) / (2 * len(rows) * len(self.orders)))
 
 
-__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma", "cell_sigma",
+__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma", "sigma_variances", "cell_sigma",
            "robust_weights", "Likelihood"]

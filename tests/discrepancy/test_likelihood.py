@@ -81,6 +81,15 @@ def test_cell_sigma_adds_the_pickup_and_the_input_offset_check_in_quadrature():
     s = cell_sigma(rep, np.zeros((3, 8)), meas, pick, off)
     assert s == pytest.approx(np.sqrt(base ** 2 + pick ** 2 + off ** 2), rel=1e-12)
     assert cell_sigma(rep, np.zeros((3, 8)), meas, None, off) == pytest.approx(np.sqrt(base ** 2 + off ** 2))
+    # the terms the benchmark's decomposition prints (bench/bench_sigma_terms.py) add up to it
+    from dampersim.discrepancy.likelihood import SIGMA_FLOOR_SHARE, sigma_variances
+
+    mc = np.full((3, 8), 0.05)
+    v = sigma_variances(rep, mc, meas, pick, off)
+    assert sorted(v) == ["floor", "input", "mains", "model", "repeat"]
+    assert np.sqrt(sum(v.values())) == pytest.approx(cell_sigma(rep, mc, meas, pick, off), rel=1e-12)
+    assert v["floor"] == pytest.approx(np.full((3, 8), (SIGMA_FLOOR_SHARE * 10.0) ** 2))
+    assert v["mains"] == pytest.approx(pick ** 2) and v["input"] == pytest.approx(off ** 2)
 
 
 def test_pooled_repeatability_is_unbiased_for_gaussian_noise():

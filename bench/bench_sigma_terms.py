@@ -1,0 +1,111 @@
+"""What makes up the cell uncertainty of a diagnosis, and what the floor term does to it.
+
+For each named case of the hard benchmark matrix (``bench/bench_discrepancy.py --list``
+shows the ids; the campaign is synthesised exactly as that benchmark does, 12 torsional
+points of 1 s), the diagnosis's own compare step runs (four model runs per point) and is
+stopped there; printed per case:
+
+* each term's share of the cell variance summed over all cells, and its share in the
+  median cell (repeatability, discretisation, input channel, mains pick-up, floor;
+  :func:`dampersim.discrepancy.likelihood.sigma_variances`);
+* per point the RMS of each term [N m].
+
+``--floor F [F ...]`` then runs the whole diagnosis (no next-test design) once per
+floor share F (``likelihood.SIGMA_FLOOR_SHARE``) and prints its verdict, posterior and
+reduced chi^2 (held out and training): about 12-15 minutes per diagnosis on 2 cores.
+
+    python bench/bench_sigma_terms.py control/none/0
+    python bench/bench_sigma_terms.py control/none/0 control/calibration/0 --floor 1e-3 1e-4
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_discrepancy as B  # noqa: E402 - the benchmark's matrix and campaign layout
+
+from dampersim.discrepancy import diagnose as dg  # noqa: E402
+from dampersim.discrepancy import likelihood  # noqa: E402
+from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
+from dampersim.discrepancy.synth import synthesize  # noqa: E402
+
+
+class _Stop(Exception):
+    """Raised by the spy once the compare step has handed over its terms."""
+
+
+def campaign_of(case, folder, workers: int):
+    spec = case["spec"]
+    synthesize(folder, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
+               noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
+               points=B.point_ids(12, 1), record=1.0, workers=workers, daq=case["daq"])
+    return read_campaign(folder)
+
+
+def terms_of(camp, workers: int) -> dict:
+    """The variances diagnose's compare step passes to cell_sigma, by term."""
+    seen = {}
+    real = dg.cell_sigma
+
+    def spy(repeat, model_change, meas, pickup=None, offset_change=None):
+        seen.update(likelihood.sigma_variances(repeat, model_change, meas, pickup, offset_change))
+        raise _Stop
+
+    dg.cell_sigma = spy
+    try:
+        dg.diagnose(camp, workers=workers, recommend=False)
+    except _Stop:
+        pass
+    finally:
+        dg.cell_sigma = real
+    return seen
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("cases", nargs="+", help="hard-matrix case ids")
+    ap.add_argument("--floor", nargs="*", type=float, default=[], help="floor shares to run the whole diagnosis with")
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args(argv)
+    matrix = {c["id"]: c for c in B.hard_cases()}
+    unknown = [c for c in a.cases if c not in matrix]
+    if unknown:
+        ap.error(f"unknown case(s) {', '.join(unknown)}: see python bench/bench_discrepancy.py --list")
+    for cid in a.cases:
+        with tempfile.TemporaryDirectory() as d:
+            camp = campaign_of(matrix[cid], os.path.join(d, "campaign"), a.workers)
+            var = terms_of(camp, a.workers)
+            total = sum(var.values())
+            ids = [p.id for p in camp.torsional]
+            print(json.dumps({
+                "case": cid, "floor_share": likelihood.SIGMA_FLOOR_SHARE,
+                "share_of_summed_variance": {k: round(float(v.sum() / total.sum()), 3) for k, v in var.items()},
+                "share_in_median_cell": {k: round(float(np.median(v / total)), 3) for k, v in var.items()},
+                "rms_per_point_nm": {pid: {k: round(float(np.sqrt(v[i].mean())), 4) for k, v in var.items()}
+                                     for i, pid in enumerate(ids)}}), flush=True)
+            default = likelihood.SIGMA_FLOOR_SHARE
+            for share in a.floor:
+                likelihood.SIGMA_FLOOR_SHARE = share
+                try:
+                    d_ = dg.diagnose(camp, workers=a.workers, recommend=False).to_json()
+                finally:
+                    likelihood.SIGMA_FLOOR_SHARE = default
+                lk = d_["likelihood"]
+                print(json.dumps({"case": cid, "floor_share": share, "verdict": d_["verdict"],
+                                  "posterior": {k: round(v, 3) for k, v in d_["posterior"].items() if v >= 0.001},
+                                  "reduced_chi2_held_out": round(lk["reduced_chi2_held_out"], 3),
+                                  "reduced_chi2_train": round(lk["reduced_chi2_train"], 3),
+                                  "simulations": d_["simulations"]}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
