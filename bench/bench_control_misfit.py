@@ -102,19 +102,20 @@ def main(argv=None):
                     help="the cell uncertainty's floor share (likelihood.SIGMA_FLOOR_SHARE) to diagnose with")
     args = ap.parse_args(argv)
     if args.floor is not None:
-        if not args.floor >= 0.0:
-            ap.error(f"--floor {args.floor}: accepted is a share >= 0")
+        if not 0.0 < args.floor < 1.0:
+            ap.error(f"--floor {args.floor}: accepted is a share between 0 and 1, both excluded")
         likelihood.SIGMA_FLOOR_SHARE = args.floor  # read at call time, in this process only
+    floor = f"floor={likelihood.SIGMA_FLOOR_SHARE:g}"
     if args.case == "benchmark":
         for name in args.truths:
             t = TRUTHS[name]
-            row = run(name, [], t["perturb"], 4242, BENCH_POINTS, 1.0, t["daq"], t["fine"], None,
+            row = run(f"{name} {floor}", [], t["perturb"], 4242, BENCH_POINTS, 1.0, t["daq"], t["fine"], None,
                       {"noise_db": -2.0, "candidates": ["turbine_drag"], "shortlist": 1}, args.workers)
             print(json.dumps(row), flush=True)
         return
     effects = [("pendulum_absorber", {"inertia": 0.002})] if args.case == "ci-absorber" else []
-    row = run(f"{args.case} daq={args.daq} floor={likelihood.SIGMA_FLOOR_SHARE:g}", effects, 0.03, CI_SEED, CI_POINTS, 0.8, ci_daq(args.daq), True,
-              at_thesis_segments(), {"candidates": CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2},
+    row = run(f"{args.case} daq={args.daq} {floor}", effects, 0.03, CI_SEED, CI_POINTS, 0.8, ci_daq(args.daq),
+              True, at_thesis_segments(), {"candidates": CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2},
               args.workers)
     print(json.dumps(row), flush=True)
 

@@ -23,10 +23,11 @@ step·DOF, i.e. 5.3e7 to 5.9e7 step·DOF per second of one core; friction off is
 twice as fast. :data:`STEP_DOF_PER_SECOND` takes the slower, rounded figure, 5e7, so a
 time estimate errs long. The default budgets follow from it: :data:`DEFAULT_AUTOSTART`
 2.5e9 step·DOF (about 50 s of one core: every default page state, the largest being the
-Maps page's 80 points at 2.15e9 with the default 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 6e10 step·DOF
-(about 20 min of one core: the bundled example campaign's diagnosis, bounded at 4.5e10 by
-:func:`diagnosis_cost`, is admitted with room). Both are server settings, read from the environment at call
-time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
+Maps page's 80 points at 2.15e9 with the default 48/16 segments, starts by itself) and
+:data:`DEFAULT_LIMIT` 6e10 step·DOF (about 20 min of one core: the bundled example
+campaign's diagnosis, bounded at 4.5e10 by :func:`diagnosis_cost`, is admitted with room;
+the limit applies to every kind of request). Both are server settings, read from the
+environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
 step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes (default 1 GiB).
 
 :func:`admit` applies them: above the limit a :class:`BudgetError` (an

@@ -134,10 +134,9 @@ def sigma_variances(repeat, model_change, meas, pickup=None, offset_change=None)
     pooled = np.median(repeat ** 2, axis=0, keepdims=True) / math.log(2.0)
     floor = SIGMA_FLOOR_SHARE * max(float(np.nanmax(np.abs(meas))), 1e-9)
     model_change = np.nan_to_num(np.asarray(model_change, dtype=float), nan=0.0)
-    zero = np.zeros(repeat.shape)
     return {"repeat": 0.5 * (repeat ** 2 + pooled), "model": model_change ** 2,
-            "mains": zero if pickup is None else np.asarray(pickup, dtype=float) ** 2,
-            "input": zero if offset_change is None else np.asarray(offset_change, dtype=float) ** 2,
+            "mains": np.zeros(repeat.shape) if pickup is None else np.asarray(pickup, dtype=float) ** 2,
+            "input": np.zeros(repeat.shape) if offset_change is None else np.asarray(offset_change, dtype=float) ** 2,
             "floor": np.full(repeat.shape, floor ** 2)}
 
 
@@ -291,5 +290,5 @@ class Likelihood:
         return float(np.sum(self.point_chi2(y, rows, nuisance)) / (2 * len(rows) * len(self.orders)))
 
 
-__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma", "sigma_variances", "cell_sigma",
-           "robust_weights", "Likelihood"]
+__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma",
+           "sigma_variances", "cell_sigma", "robust_weights", "Likelihood"]

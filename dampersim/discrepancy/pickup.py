@@ -13,8 +13,9 @@ So the pick-up is measured where it is harmless and carried where it is not:
 
 1. for every line frequency F of MAINS_HZ and every torsional point whose record leaves
    F at least CLEAR_BINS frequency bins (1 / record length) from every engine order (at
-   the record's measured mean speed where it has a speed channel), half orders included (a four-stroke engine's cycle is two revolutions, and the damper's
-   non-linearity carries its half orders up the spectrum), the output channel's line
+   the record's measured mean speed where it has a speed channel), half orders included
+   (a four-stroke engine's cycle is two revolutions, and the damper's non-linearity
+   carries its half orders up the spectrum), the output channel's line
    coefficient at F (Hann window over the whole record: the complex amplitude of a
    sinusoid at F) and its noise, from the record's two halves read at F on the whole
    record's time origin (a steady line gives both halves the same coefficient; half their

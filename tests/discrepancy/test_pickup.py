@@ -126,3 +126,16 @@ def test_the_band_without_a_speed_channel_is_the_order_reader_s(d_bins, inside):
     # 1e-3 relative: the other orders are absent, so only the window's leakage differs
     assert read ** 2 == pytest.approx(26.0 if inside else 25.0, rel=1e-3)
     assert pickup.band_half_width(ORDERS, 0.8 * rpm / 60.0)[0] == pytest.approx(3.5)  # a short record: 1.5 + 2 bins
+
+
+def test_a_point_without_a_speed_channel_takes_a_line_anywhere_in_the_order_s_wide_band():
+    """10 s records: at 1485 rpm 50 Hz lies 5 bins above order 2, outside the 1.5 + 2 bins of
+    a short record but inside order 2's band on this one (1 % of 49.5 Hz is 4.95 bins, plus
+    the main lobe: 6.95 bins), so the bare point's order 2 takes the whole line."""
+    pts = [_point(rpm, 0.3, s, record=10.0) for s, rpm in enumerate((1100, 1300, 1800))]
+    bare = dataclasses.replace(_point(1485, 0.3, 9, record=10.0), input_speed_rpm=None)
+    assert pickup.band_half_width(ORDERS, 1485 / 60.0 * 10.0)[1] == pytest.approx(6.95, abs=0.01)
+    sig = pickup.pickup_sigma(pts + [bare], ORDERS)
+    a = math.sqrt(pickup.line_powers(pts + [bare])[50.0])
+    assert a > 0.2  # the 0.3 N m line is found on the clear points
+    assert sig[-1, 1] == pytest.approx(a) and np.all(np.delete(sig[-1], 1) == 0.0)
