@@ -1,0 +1,164 @@
+"""Does the records' split-half repeatability measure the noise a driven model is judged against?
+
+Among the terms of a cell's uncertainty, the diagnosis takes the repeatability of the
+measured order coefficient from the record's two halves
+(:func:`dampersim.discrepancy.likelihood.split_half_sigma`; for the orders the input
+carries, half the difference of the halves' ratios output/input). The model it is compared
+with is driven by the same record, so what matters is the uncertainty of the residual:
+what the model cannot reproduce from the record. This bench measures both on synthetic
+campaigns whose truth is known and whose only noise is white sensor noise (no acquisition
+chain, exact channel gains):
+
+* ``measured``: ``split_half_sigma``, as the diagnosis uses it;
+* ``residual``: half the difference of the halves' residuals against the truth's parameters
+  at the diagnosed discretisation, driven by the record (its output interpolated onto the
+  record's time base and read like the record: same angle, same halves; the interpolation's
+  small attenuation is the same in both halves and cancels in their difference).
+
+Printed per campaign: the noise-only reduced chi^2, the mean over cells of |measured - the
+fine truth driven by the record|^2 over each estimate's variance, pooled per order as the
+diagnosis pools it (likelihood.sigma_variances): 1 for an honest estimate, below 1 for an
+inflated one; and per order the RMS of that misfit and of each estimate [N m].
+
+Campaigns: ``ci-control`` and ``ci-absorber`` (bench_control_misfit.py's, the strict CI
+identification tests' campaigns) and ``benchmark`` (its 12-point no-effect campaign, 10 %
+perturbation, -2 dB noise).
+
+``--diagnose`` then diagnoses the CI control campaign with ``--daq`` (default ``random``)
+twice, with each estimate as the repeatability term (the residual one against the
+parameter set as given, one more model run per point), and prints verdict, reduced chi^2
+and every point's reduced chi^2; ``--perturb`` sets the truth's perturbation of the
+estimated parameters (default the CI test's 3 %; 0 leaves only the finer discretisation
+and the acquisition chain between truth and model).
+
+    python bench/bench_repeatability.py
+    python bench/bench_repeatability.py --campaigns ci-control --diagnose
+    python bench/bench_repeatability.py --campaigns --diagnose --perturb 0
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_control_misfit as M  # noqa: E402 - the CI campaigns and their diagnosis options
+
+from dampersim.analysis.ordertrack import track_orders  # noqa: E402
+from dampersim.discrepancy import diagnose as dg  # noqa: E402
+from dampersim.discrepancy import drive, synth, tracking  # noqa: E402
+from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
+from dampersim.discrepancy.likelihood import measured_coefficients, split_half_sigma  # noqa: E402
+from dampersim.excitation import MeasuredTorque  # noqa: E402
+from dampersim.parameters import at_thesis_segments, default_parameters  # noqa: E402
+from dampersim.simulation import simulate  # noqa: E402
+
+CAMPAIGNS = {
+    "ci-control": dict(base=at_thesis_segments, points=M.CI_POINTS, record=0.8, noise_db=0.0, perturb=0.03,
+                       seed=M.CI_SEED, effects=[]),
+    "ci-absorber": dict(base=at_thesis_segments, points=M.CI_POINTS, record=0.8, noise_db=0.0, perturb=0.03,
+                        seed=M.CI_SEED, effects=[("pendulum_absorber", {"inertia": 0.002})]),
+    "benchmark": dict(base=default_parameters, points=M.BENCH_POINTS, record=1.0, noise_db=-2.0, perturb=0.1,
+                      seed=4242, effects=[]),
+}
+
+
+def half_readings(point, signal) -> np.ndarray:
+    """Order coefficients [N m] of ``signal`` (on the point's time base) over the record's two
+    halves, read as split_half_sigma reads them: on the whole record's tracked angle."""
+    n = len(point.output_torque) // 2
+    th = tracking.point_angle(point, drive.ORDERS)
+    x = np.asarray(signal)
+    return np.array([track_orders(x[sl], point.time[sl], th[sl], drive.ORDERS, channel=tracking.SPEED_CHANNEL).complex
+                     for sl in (slice(0, n), slice(n, 2 * n))])
+
+
+def driven_output(system, point) -> np.ndarray:
+    """Output torque [N m] of ``system`` driven by the point's record, on the record's time base."""
+    ex = MeasuredTorque(point.speed, point.time, point.input_torque, settle=drive.DRIVE_SETTLE)
+    res = simulate(drive.diagnosis_system(system), ex, record_segments=False)
+    w = res.window(point.duration)
+    return np.interp(point.time, np.asarray(res.t[w]) - ex.steady_start, np.asarray(res.output_torque[w]))
+
+
+def residual_half_sigma(system, point) -> np.ndarray:
+    """Half the difference of the halves' residuals against ``system`` driven by the record [N m]."""
+    (m1, m2), (y1, y2) = half_readings(point, point.output_torque), half_readings(point, driven_output(system, point))
+    return 0.5 * np.abs((m1 - y1) - (m2 - y2))
+
+
+def pooled_variance(repeat) -> np.ndarray:
+    """The diagnosis's repeatability variance: mean of the cell's and the per-order median / ln 2."""
+    return 0.5 * (repeat ** 2 + np.median(repeat ** 2, axis=0, keepdims=True) / math.log(2.0))
+
+
+def noise_check(name: str, workers: int) -> dict:
+    c = CAMPAIGNS[name]
+    base = c["base"]()
+    with tempfile.TemporaryDirectory() as d:
+        doc = synth.synthesize(os.path.join(d, "c"), effects=c["effects"], perturb=c["perturb"],
+                               noise_db=c["noise_db"], seed=c["seed"], points=c["points"], record=c["record"],
+                               workers=workers, base=base, gain_error=0.0)
+        pts = read_campaign(os.path.join(d, "c")).torsional
+    applied = {k: v for k, v in doc["perturbed"].items() if not k.startswith("solver.")}
+    truth, _ = synth.truth_system(base, c["effects"], 0.0, None, applied, fine=False)
+    fine, _ = synth.truth_system(base, c["effects"], 0.0, None, applied, fine=True)
+    with drive.Runner(workers) as r:
+        y_fine = drive.coefficients_of(r, fine, pts)
+    resid2 = np.abs(np.array([measured_coefficients(p, drive.ORDERS) for p in pts]) - y_fine) ** 2
+    est = {"measured": np.array([split_half_sigma(p, drive.ORDERS) for p in pts]),
+           "residual": np.array([residual_half_sigma(truth, p) for p in pts])}
+    def rms(a):
+        return np.round(np.sqrt(np.mean(a, axis=0)), 3).tolist()
+
+    return {"campaign": name,
+            "noise_only_reduced_chi2": {k: round(float(np.mean(resid2 / pooled_variance(v))), 3)
+                                        for k, v in est.items()},
+            "rms_misfit_by_order_nm": rms(resid2),
+            **{f"rms_{k}_estimate_by_order_nm": rms(v ** 2) for k, v in est.items()}}
+
+
+def diagnose_control(daq: str, workers: int, perturb: float) -> list:
+    rows = []
+    same = dg.split_half_sigma
+    base = at_thesis_segments()
+    for est in ("measured", "residual"):
+        if est == "residual":
+            dg.split_half_sigma = lambda p, orders: residual_half_sigma(base, p)
+        try:
+            row = M.run(f"ci-control daq={daq} perturb={perturb:g} repeatability={est}", [], perturb, M.CI_SEED,
+                        M.CI_POINTS, 0.8, M.ci_daq(daq), True, base,
+                        {"candidates": M.CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2}, workers)
+        finally:
+            dg.split_half_sigma = same
+        rows.append(row)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--campaigns", nargs="*", choices=tuple(CAMPAIGNS), default=list(CAMPAIGNS))
+    ap.add_argument("--diagnose", action="store_true", help="also diagnose the CI control with each estimate")
+    ap.add_argument("--daq", default="random", help="--diagnose: none, random, or parts of the random chain")
+    ap.add_argument("--perturb", type=float, default=0.03,
+                    help="--diagnose: the truth's relative perturbation of the estimated parameters (CI test: 0.03)")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    for name in args.campaigns:
+        print(json.dumps(noise_check(name, args.workers)), flush=True)
+    if args.diagnose:
+        if not 0.0 <= args.perturb < 1.0:
+            ap.error(f"--perturb {args.perturb}: accepted is a share from 0 (included) to 1 (excluded)")
+        for row in diagnose_control(args.daq, args.workers, args.perturb):
+            print(json.dumps(row), flush=True)
+
+
+if __name__ == "__main__":
+    main()
