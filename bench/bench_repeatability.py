@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import tempfile
@@ -51,11 +50,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_control_misfit as M  # noqa: E402 - the CI campaigns and their diagnosis options
 
-from dampersim.analysis.ordertrack import track_orders  # noqa: E402
 from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive, synth, tracking  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
-from dampersim.discrepancy.likelihood import measured_coefficients, split_half_sigma  # noqa: E402
+from dampersim.discrepancy.likelihood import measured_coefficients, sigma_variances, split_half_sigma  # noqa: E402
 from dampersim.excitation import MeasuredTorque  # noqa: E402
 from dampersim.parameters import at_thesis_segments, default_parameters  # noqa: E402
 from dampersim.simulation import simulate  # noqa: E402
@@ -74,10 +72,8 @@ def half_readings(point, signal) -> np.ndarray:
     """Order coefficients [N m] of ``signal`` (on the point's time base) over the record's two
     halves, read as split_half_sigma reads them: on the whole record's tracked angle."""
     n = len(point.output_torque) // 2
-    th = tracking.point_angle(point, drive.ORDERS)
-    x = np.asarray(signal)
-    return np.array([track_orders(x[sl], point.time[sl], th[sl], drive.ORDERS, channel=tracking.SPEED_CHANNEL).complex
-                     for sl in (slice(0, n), slice(n, 2 * n))])
+    read = tracking.record_angle_reader(point, drive.ORDERS)
+    return np.array([read(signal, sl) for sl in (slice(0, n), slice(n, 2 * n))])
 
 
 def driven_output(system, point) -> np.ndarray:
@@ -95,8 +91,8 @@ def residual_half_sigma(system, point) -> np.ndarray:
 
 
 def pooled_variance(repeat) -> np.ndarray:
-    """The diagnosis's repeatability variance: mean of the cell's and the per-order median / ln 2."""
-    return 0.5 * (repeat ** 2 + np.median(repeat ** 2, axis=0, keepdims=True) / math.log(2.0))
+    """The diagnosis's repeatability variance [N m^2] for ``repeat`` (the term of sigma_variances)."""
+    return sigma_variances(repeat, np.zeros(repeat.shape), np.ones(1))["repeat"]
 
 
 def noise_check(name: str, workers: int) -> dict:

@@ -46,7 +46,6 @@ import math
 
 import numpy as np
 
-from dampersim.analysis.ordertrack import track_orders
 from dampersim.discrepancy import tracking
 
 #: prior standard deviation of the relative output/input channel gain (log): the torque
@@ -109,12 +108,7 @@ def split_half_sigma(point, orders) -> np.ndarray:
                               for sl in halves]
         a_in = tracking.point_orders(point, point.input_torque, orders, slice(0, 2 * n)).astype(complex)
     else:
-        th = tracking.point_angle(point, orders)
-
-        def read(signal, sl):
-            return track_orders(np.asarray(signal)[sl], point.time[sl], th[sl], orders,
-                                channel=tracking.SPEED_CHANNEL).complex
-
+        read = tracking.record_angle_reader(point, orders)
         (i1, o1), (i2, o2) = [(read(point.input_torque, sl), read(point.output_torque, sl)) for sl in halves]
         a_in = read(point.input_torque, slice(0, 2 * n))
     driven = np.abs(a_in) >= 0.01 * max(float(np.abs(a_in).max()), 1e-12)

@@ -51,6 +51,21 @@ def point_angle(point, orders, part: slice = slice(None)) -> np.ndarray | None:
     return tracking_angle(point.time[part], w[part], orders, LOWPASS_SHARE, SPEED_CHANNEL)
 
 
+def record_angle_reader(point, orders):
+    """A reader ``read(signal, part)`` of the complex order coefficients [N m] of a signal on
+    the point's time base over ``part`` of the record, every part read on the whole record's
+    tracked angle (so all parts share one phase reference); None without a speed channel."""
+    th = point_angle(point, orders)
+    if th is None:
+        return None
+
+    def read(signal, part: slice = slice(None)) -> np.ndarray:
+        return track_orders(np.asarray(signal)[part], point.time[part], th[part], orders,
+                            channel=SPEED_CHANNEL).complex
+
+    return read
+
+
 def tracked(point, signal, orders, part: slice = slice(None)) -> TrackedOrders:
     """Tracked order spectrum of ``signal`` (a channel of ``point``, [N m]) over ``part`` of
     the record. The point must have a speed channel."""
@@ -94,4 +109,4 @@ def driven_orders(point, res, steady_start: float, orders) -> np.ndarray:
     return np.abs(driven_coefficients(point, res, steady_start, orders))
 
 
-__all__ = ["SPEED_CHANNEL", "point_speed", "point_angle", "tracked", "point_orders", "driven_coefficients", "driven_orders"]
+__all__ = ["SPEED_CHANNEL", "point_speed", "point_angle", "record_angle_reader", "tracked", "point_orders", "driven_coefficients", "driven_orders"]
