@@ -28,6 +28,7 @@ wall time.
     python bench/bench_control_misfit.py --case ci-control --daq hum
     python bench/bench_control_misfit.py --case ci-absorber --daq none
     python bench/bench_control_misfit.py --case ci-absorber --floor 1e-4   # another uncertainty floor
+    python bench/bench_control_misfit.py --case ci-control --derivative-steps 0.05 --estimate-sd 0
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ import os
 import tempfile
 import time
 
-from dampersim.discrepancy import likelihood, synth
+from dampersim.discrepancy import fitting, likelihood, synth
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.jsonsafe import jsonable
@@ -100,12 +101,26 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--floor", type=float, default=None,
                     help="the cell uncertainty's floor share (likelihood.SIGMA_FLOOR_SHARE) to diagnose with")
+    ap.add_argument("--derivative-steps", type=float, nargs="+", default=None,
+                    help="the calibration's finite-difference log steps, tried in turn (fitting.CAL_DERIVATIVE_STEPS)")
+    ap.add_argument("--estimate-sd", type=float, default=None,
+                    help="the uncalibrated parameters' log uncertainty (fitting.ESTIMATE_LOG_SD); 0 drops that term")
     args = ap.parse_args(argv)
+    bad = [h for h in args.derivative_steps or () if not 0.0 < h < 1.0]
+    if bad:
+        ap.error(f"--derivative-steps {bad[0]}: accepted are log steps between 0 and 1, both excluded")
+    if args.estimate_sd is not None and not 0.0 <= args.estimate_sd < 1.0:
+        ap.error(f"--estimate-sd {args.estimate_sd}: accepted is a log uncertainty from 0 (included) to 1 (excluded)")
+    if args.derivative_steps is not None:
+        fitting.CAL_DERIVATIVE_STEPS = tuple(args.derivative_steps)  # read at call time, in this process only
+    if args.estimate_sd is not None:
+        fitting.ESTIMATE_LOG_SD = args.estimate_sd
     if args.floor is not None:
         if not 0.0 < args.floor < 1.0:
             ap.error(f"--floor {args.floor}: accepted is a share between 0 and 1, both excluded")
         likelihood.SIGMA_FLOOR_SHARE = args.floor  # read at call time, in this process only
-    floor = f"floor={likelihood.SIGMA_FLOOR_SHARE:g}"
+    floor = (f"floor={likelihood.SIGMA_FLOOR_SHARE:g} derivative_steps={','.join(f'{h:g}' for h in fitting.CAL_DERIVATIVE_STEPS)} "
+             f"estimate_sd={fitting.ESTIMATE_LOG_SD:g}")
     if args.case == "benchmark":
         for name in args.truths:
             t = TRUTHS[name]

@@ -11,9 +11,11 @@ chain, exact channel gains):
 
 * ``measured``: ``split_half_sigma``, as the diagnosis uses it;
 * ``residual``: half the difference of the halves' residuals against the truth's parameters
-  at the diagnosed discretisation, driven by the record (its output interpolated onto the
-  record's time base and read like the record: same angle, same halves; the interpolation's
-  small attenuation is the same in both halves and cancels in their difference).
+  at the diagnosed discretisation, driven by the record
+  (:func:`~dampersim.discrepancy.likelihood.residual_half_sigma`; the run's output is
+  interpolated onto the record's time base and read like the record: same angle, same
+  halves; the interpolation's small attenuation is the same in both halves and cancels in
+  their difference).
 
 Printed per campaign: the noise-only reduced chi^2, the mean over cells of |measured - the
 fine truth driven by the record|^2 over each estimate's variance, pooled per order as the
@@ -25,9 +27,9 @@ identification tests' campaigns) and ``benchmark`` (its 12-point no-effect campa
 perturbation, -2 dB noise).
 
 ``--diagnose`` then diagnoses the CI control campaign with ``--daq`` (default ``random``)
-twice, with each estimate as the repeatability term (the residual one against the
-parameter set as given, one more model run per point), and prints verdict, reduced chi^2
-and every point's reduced chi^2; ``--perturb`` sets the truth's perturbation of the
+twice, with each estimate as the repeatability term (the diagnosis's ``repeatability``
+``"split_half"`` and ``"residual"``, the latter against the parameter set as given), and
+prints verdict, reduced chi^2 and every point's reduced chi^2; ``--perturb`` sets the truth's perturbation of the
 estimated parameters (default the CI test's 3 %; 0 leaves only the finer discretisation
 and the acquisition chain between truth and model).
 
@@ -50,13 +52,11 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_control_misfit as M  # noqa: E402 - the CI campaigns and their diagnosis options
 
-from dampersim.discrepancy import diagnose as dg  # noqa: E402
-from dampersim.discrepancy import drive, synth, tracking  # noqa: E402
+from dampersim.discrepancy import drive, synth  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
-from dampersim.discrepancy.likelihood import measured_coefficients, sigma_variances, split_half_sigma  # noqa: E402
-from dampersim.excitation import MeasuredTorque  # noqa: E402
+from dampersim.discrepancy.likelihood import (measured_coefficients, residual_half_sigma,  # noqa: E402
+                                              sigma_variances, split_half_sigma)
 from dampersim.parameters import at_thesis_segments, default_parameters  # noqa: E402
-from dampersim.simulation import simulate  # noqa: E402
 
 CAMPAIGNS = {
     "ci-control": dict(base=at_thesis_segments, points=M.CI_POINTS, record=0.8, noise_db=0.0, perturb=0.03,
@@ -68,26 +68,10 @@ CAMPAIGNS = {
 }
 
 
-def half_readings(point, signal) -> np.ndarray:
-    """Order coefficients [N m] of ``signal`` (on the point's time base) over the record's two
-    halves, read as split_half_sigma reads them: on the whole record's tracked angle."""
-    n = len(point.output_torque) // 2
-    read = tracking.record_angle_reader(point, drive.ORDERS)
-    return np.array([read(signal, sl) for sl in (slice(0, n), slice(n, 2 * n))])
-
-
-def driven_output(system, point) -> np.ndarray:
-    """Output torque [N m] of ``system`` driven by the point's record, on the record's time base."""
-    ex = MeasuredTorque(point.speed, point.time, point.input_torque, settle=drive.DRIVE_SETTLE)
-    res = simulate(drive.diagnosis_system(system), ex, record_segments=False)
-    w = res.window(point.duration)
-    return np.interp(point.time, np.asarray(res.t[w]) - ex.steady_start, np.asarray(res.output_torque[w]))
-
-
-def residual_half_sigma(system, point) -> np.ndarray:
+def residual_half_sigma_of(system, point) -> np.ndarray:
     """Half the difference of the halves' residuals against ``system`` driven by the record [N m]."""
-    (m1, m2), (y1, y2) = half_readings(point, point.output_torque), half_readings(point, driven_output(system, point))
-    return 0.5 * np.abs((m1 - y1) - (m2 - y2))
+    run = drive.simulate_point(drive.diagnosis_system(system), point, halves=True)
+    return residual_half_sigma(point, run["halves"], drive.ORDERS)
 
 
 def pooled_variance(repeat) -> np.ndarray:
@@ -110,7 +94,7 @@ def noise_check(name: str, workers: int) -> dict:
         y_fine = drive.coefficients_of(r, fine, pts)
     resid2 = np.abs(np.array([measured_coefficients(p, drive.ORDERS) for p in pts]) - y_fine) ** 2
     est = {"measured": np.array([split_half_sigma(p, drive.ORDERS) for p in pts]),
-           "residual": np.array([residual_half_sigma(truth, p) for p in pts])}
+           "residual": np.array([residual_half_sigma_of(truth, p) for p in pts])}
     def rms(a):
         return np.round(np.sqrt(np.mean(a, axis=0)), 3).tolist()
 
@@ -123,18 +107,11 @@ def noise_check(name: str, workers: int) -> dict:
 
 def diagnose_control(daq: str, workers: int, perturb: float) -> list:
     rows = []
-    same = dg.split_half_sigma
-    base = at_thesis_segments()
-    for est in ("measured", "residual"):
-        if est == "residual":
-            dg.split_half_sigma = lambda p, orders: residual_half_sigma(base, p)
-        try:
-            row = M.run(f"ci-control daq={daq} perturb={perturb:g} repeatability={est}", [], perturb, M.CI_SEED,
-                        M.CI_POINTS, 0.8, M.ci_daq(daq), True, base,
-                        {"candidates": M.CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2}, workers)
-        finally:
-            dg.split_half_sigma = same
-        rows.append(row)
+    for est, term in (("measured", "split_half"), ("residual", "residual")):
+        rows.append(M.run(f"ci-control daq={daq} perturb={perturb:g} repeatability={est}", [], perturb, M.CI_SEED,
+                          M.CI_POINTS, 0.8, M.ci_daq(daq), True, at_thesis_segments(),
+                          {"candidates": M.CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2,
+                           "repeatability": term}, workers))
     return rows
 
 

@@ -2,11 +2,12 @@
 
 For each named case of the hard benchmark matrix (``bench/bench_discrepancy.py --list``
 shows the ids; the campaign is synthesised exactly as that benchmark does, 12 torsional
-points of 1 s), the diagnosis's own compare step runs (four model runs per point) and is
+points of 1 s), the diagnosis's own compare step runs (ten model runs per point) and is
 stopped there; printed per case:
 
 * each term's share of the cell variance summed over all cells, and the median over cells
-  of its share of the cell's variance (repeatability, discretisation, input channel, mains pick-up, floor;
+  of its share of the cell's variance (repeatability, discretisation, input channel, uncalibrated
+  parameters, mains pick-up, floor;
   :func:`dampersim.discrepancy.likelihood.sigma_variances`);
 * per point the RMS of each term [N m].
 
@@ -56,8 +57,8 @@ def terms_of(camp, workers: int) -> dict:
     seen = {}
     real = dg.cell_sigma
 
-    def spy(repeat, model_change, meas, pickup=None, offset_change=None):
-        seen.update(likelihood.sigma_variances(repeat, model_change, meas, pickup, offset_change))
+    def spy(*args, **kwargs):
+        seen.update(likelihood.sigma_variances(*args, **kwargs))
         raise _Stop
 
     dg.cell_sigma = spy

@@ -271,9 +271,11 @@ def pulsation_cost(coupled: bool = False, runs: int = 1, system=None, generator=
 # Counts of :func:`dampersim.discrepancy.diagnose.diagnose` (its defaults), kept here because
 # the discrepancy package sits above this module; tests check them against it.
 DIAGNOSIS_FACTORS = 6  # calibrated log scale factors (CALIBRATION)
-DIAGNOSIS_COMPARE_RUNS = 4  # per point: as given, its coarse check, its input moved up and down (input_mean_sd)
+DIAGNOSIS_COMPARE_RUNS = 4 + 2 * 3  # per point: as given, coarse, input moved up and down (input_mean_sd),
+# and the set moved up and down along each of the three directions the calibration cannot follow
 DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
 DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
+DIAGNOSIS_DERIVATIVE_STEPS = 2  # sensitivity steps an iteration may try in turn (fitting.CAL_DERIVATIVE_STEPS)
 DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)
 DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
 DIAGNOSIS_FIT_RUNS = 5 + 8 + 3 + 1  # magnitude grid + bounded refinement + verification + derivative runs
@@ -299,9 +301,11 @@ DIAGNOSIS_RAMP_RUNS = (3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1
 
 def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     """Upper bound of the model runs one diagnosis makes with ``n_points`` torsional points
-    (every third held out) and ``n_candidates`` effects: compare (four times: the model, its
-    coarse discretisation and its input moved up and down by the input channel's
-    uncertainty), coarse scan and Gauss-Newton on the training points, the
+    (every third held out) and ``n_candidates`` effects: compare (ten times: the model, its
+    coarse discretisation, its input moved up and down by the input channel's uncertainty
+    and the set moved up and down along the three directions the calibration cannot
+    follow), coarse scan and Gauss-Newton (each iteration with up to two sensitivity steps)
+    on the training points, the
     held-out check, a screen per candidate from two starts, the shortlist's fits from
     both starts (with their shape parameters) and their held-out checks, a pair of
     effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
@@ -311,7 +315,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     train = n - held
     runs = DIAGNOSIS_COMPARE_RUNS * n
     runs += DIAGNOSIS_FACTORS * DIAGNOSIS_SCAN * train
-    runs += DIAGNOSIS_ITERATIONS * (DIAGNOSIS_FACTORS + DIAGNOSIS_STEP_TRIALS) * train
+    runs += DIAGNOSIS_ITERATIONS * DIAGNOSIS_DERIVATIVE_STEPS * (DIAGNOSIS_FACTORS + DIAGNOSIS_STEP_TRIALS) * train
     runs += held
     runs += DIAGNOSIS_STARTS * int(n_candidates) * train
     shortlist = min(DIAGNOSIS_SHORTLIST, max(1, int(n_candidates)))

@@ -22,25 +22,29 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, naming, pickup, selection
+from dampersim.discrepancy import design, drive, fitting, naming, pickup, selection
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
-                                           GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, _effect_grid,
-                                           _lstsq_bounded, _resid, _rms, calibrated_system, coarse_system)
+                                           GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, UNCALIBRATED,
+                                           _effect_grid, _lstsq_bounded, _resid, _rms, calibrated_system,
+                                           coarse_system, uncalibrated_systems)
 from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, input_mean_sd, measured_coefficients,
-                                              split_half_sigma)
+                                              residual_half_sigma, split_half_sigma)
 from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
                                            Diagnosis, _not_diagnosed, _verdict_message, decide, locate, shortfall,
                                            speeds_of)
 from dampersim.discrepancy.tracking import point_orders
+from dampersim.errors import InputError
 from dampersim.parameters import default_parameters
 
 #: half width of the search in log magnitude when the ramps size an effect (a factor 4.5 either
 #: way of the torsional fit), and the smallest move worth re-running the torsional points (5 %)
 RAMP_SEARCH = 1.5
 RAMP_UPDATE_MIN = 0.05
+#: the record terms of the cell uncertainty diagnose accepts (its ``repeatability`` argument)
+REPEATABILITY = ("split_half", "residual")
 #: reduced chi^2 on held-out points that counts as the noise level (the issue's criterion);
 #: with few held-out residuals the 99 % quantile of chi^2 per degree of freedom is allowed
 CHI2_NOISE = 1.5
@@ -55,14 +59,22 @@ def noise_level(dof: int) -> float:
 
 
 def diagnose(campaign, system=None, workers: int | None = None, progress=None, candidates=None,
-             calibration_iterations: int = 6, shortlist: int = 3, recommend: bool = True) -> Diagnosis:
+             calibration_iterations: int = 6, shortlist: int = 3, recommend: bool = True,
+             repeatability: str = "split_half") -> Diagnosis:
     """Run the whole workflow on a :class:`~dampersim.discrepancy.campaign.Campaign`.
 
     system: the parameter set to diagnose (default set if None); progress(fraction, text)
     is called between steps; candidates: effect names to consider (default all);
-    recommend: rank next test points (simulates candidate points). A campaign that cannot
-    be diagnosed gives the verdict INSUFFICIENT (see :func:`shortfall`).
+    recommend: rank next test points (simulates candidate points); repeatability: the cell
+    uncertainty's record term, ``"split_half"`` (the measured output's own halves,
+    :func:`~dampersim.discrepancy.likelihood.split_half_sigma`) or ``"residual"`` (the
+    halves' residuals against the model as given,
+    :func:`~dampersim.discrepancy.likelihood.residual_half_sigma`; docs/discrepancy.md says
+    why it is not the default). A campaign that cannot be diagnosed gives the verdict
+    INSUFFICIENT (see :func:`shortfall`).
     """
+    if repeatability not in REPEATABILITY:
+        raise InputError(f"repeatability {repeatability!r}: accepted is one of {', '.join(REPEATABILITY)}")
 
     t0 = time.perf_counter()
     system = system or default_parameters()
@@ -74,12 +86,16 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     if missing:
         return _not_diagnosed(system, missing, message, problems, 0, t0)
     meas_c = np.array([measured_coefficients(p, drive.ORDERS) for p in every])
-    repeat = np.array([split_half_sigma(p, drive.ORDERS) for p in every])
     with drive.Runner(workers) as runner:
         # 1) compare
         report(0.02, "compare: driving the model with every measured input torque")
-        err0, err_coarse = {}, {}
-        y0 = drive.coefficients_of(runner, system, every, err0)
+        err0, err_coarse, halves0 = {}, {}, ({} if repeatability == "residual" else None)
+        y0 = drive.coefficients_of(runner, system, every, err0, halves0)
+        if halves0 is None:
+            repeat = np.array([split_half_sigma(p, drive.ORDERS) for p in every])
+        else:  # the residual's halves (a failed run's point is left out below)
+            repeat = np.array([residual_half_sigma(p, halves0[i], drive.ORDERS) if i in halves0
+                               else np.full(len(drive.ORDERS), np.nan) for i, p in enumerate(every)])
         # the model's own discretisation uncertainty, measured as the change of the order
         # coefficients when the same drive runs with two thirds of the segments (for
         # first-order convergence in 1/N that change is half the default model's own
@@ -93,10 +109,19 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         y_moved = drive.coefficients_of(runner, system, moved, err_in)  # one map: up, then down
         err_in = {i % len(every): msg for i, msg in err_in.items()}
         y_in = (y_moved[:len(every)], y_moved[len(every):])
+        # the orders' sensitivity to what the calibration cannot follow (fitting.UNCALIBRATED):
+        # the same drive with the set moved one standard uncertainty up and down along each direction
+        err_unc, unc_var = {}, np.zeros(y0.shape)
+        for _, moved_sets in uncalibrated_systems(system):
+            for s_moved in moved_sets:
+                errs = {}
+                unc_var += 0.5 * np.abs(drive.coefficients_of(runner, s_moved, every, errs) - y0) ** 2
+                err_unc.update({i: msg for i, msg in errs.items() if i not in err_unc})
         left_out = {i: f"the model run with the parameter set as given failed ({err0[i]})" if i in err0 else
                     f"the discretisation check (two thirds of the spring segments) failed ({err_coarse[i]})"
                     if i in err_coarse else f"the input check (input moved by {sd_in[i]:.3g} N m) failed ({err_in[i]})"
-                    for i in sorted({*err0, *err_coarse, *err_in})}
+                    if i in err_in else f"the uncalibrated-parameter check (fitting.UNCALIBRATED) failed ({err_unc[i]})"
+                    for i in sorted({*err0, *err_coarse, *err_in, *err_unc})}
         problems += [drive.run_problem(every[i], f"{why}; the point is left out of the calibration, the effect fits and "
                                        "the verdict") for i, why in left_out.items()]
         keep = [i for i in range(len(every)) if i not in left_out]
@@ -108,16 +133,17 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         meas = np.abs(meas_c)
         model_diff = np.abs(y_coarse - y0)
         offset_change = 0.5 * np.abs(y_in[1][keep] - y_in[0][keep])
+        unc_change = np.sqrt(unc_var[keep])
         held = [i for i in range(len(pts)) if i % 3 == 1]
         train = [i for i in range(len(pts)) if i % 3 != 1]
         ptr = [pts[i] for i in train]
         mains = pickup.pickup_sigma(pts, drive.ORDERS)
         # the displayed noise floor [N m] (amplitudes): repeatability, gain tolerance,
-        # discretisation change, input channel and mains pick-up as RMS over the campaign;
+        # discretisation change, input channel, uncalibrated parameters and mains pick-up as RMS over the campaign;
         # the verdict uses the likelihood
         floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2 + _rms(model_diff) ** 2
-                          + _rms(offset_change) ** 2 + _rms(mains) ** 2)
-        sigma = cell_sigma(repeat, model_diff, meas_c, mains, offset_change)
+                          + _rms(offset_change) ** 2 + _rms(unc_change) ** 2 + _rms(mains) ** 2)
+        sigma = cell_sigma(repeat, model_diff, meas_c, mains, offset_change, unc_change)
         lik = Likelihood(meas_c, sigma, [p.speed for p in pts], drive.ORDERS)
 
         def cost(y, x):
@@ -143,27 +169,30 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 if ck < best[0]:
                     best = (ck, xk, yk)
         _, x, y_tr = best
-        h = 0.05
         dy = np.zeros((len(x),) + y_tr.shape, dtype=complex)  # d coefficients / d log factor
         for it in range(calibration_iterations):
             report(0.08 + 0.25 * it / calibration_iterations, f"calibrate: iteration {it + 1} of {calibration_iterations}")
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
-            for k in range(len(x)):
-                xk = x.copy()
-                xk[k] += h
-                # a failed derivative run gives no direction (0), never a fit
-                dy[k] = np.nan_to_num((coeffs(calibrated_system(system, xk), ptr) - y_tr) / h, nan=0.0)
-            jac = np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
-            r = lik.mvec(train) - lik.vec(y_tr, train)
-            dx = _lstsq_bounded(jac, r, x)
-            c_now = cost(y_tr, x)
-            for frac in CAL_STEP_FRACTIONS:
-                xn = x + frac * dx
-                yn = coeffs(calibrated_system(system, xn), ptr)
-                if cost(yn, xn) < c_now:
-                    x, y_tr = xn, yn
+            c_now, moved = cost(y_tr, x), False
+            # the sensitivities from the longer step first; when no step length lowers the cost
+            # along its direction, from the shorter one (fitting.CAL_DERIVATIVE_STEPS)
+            for h in fitting.CAL_DERIVATIVE_STEPS:
+                for k in range(len(x)):
+                    xk = x.copy()
+                    xk[k] += h
+                    # a failed derivative run gives no direction (0), never a fit
+                    dy[k] = np.nan_to_num((coeffs(calibrated_system(system, xk), ptr) - y_tr) / h, nan=0.0)
+                jac = np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
+                dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
+                for frac in CAL_STEP_FRACTIONS:
+                    xn = x + frac * dx
+                    yn = coeffs(calibrated_system(system, xn), ptr)
+                    if cost(yn, xn) < c_now:
+                        x, y_tr, moved = xn, yn, True
+                        break
+                if moved:
                     break
-            else:
+            if not moved:
                 break
         lik.fit_nuisance(y_tr, train)  # the calibrated model's nuisance and robust weights
         jac = np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
@@ -393,7 +422,7 @@ def _ramp_evidence(runner, system, x, jac, namer, models, points):
     uncertainty scale. The ramps' sensitivities to the calibration factors are run
     once at the calibrated model (kept as the RampLikelihood's ``cols_x``), to each effect's
     magnitude once per fitted model; shape parameters are not carried over."""
-    h = 0.05
+    h = fitting.CAL_DERIVATIVE_STEPS[0]
     lik_r, runs = ramps_lik.ramp_likelihood(runner, calibrated_system(system, x), points)
     runs = {"none": runs}
     cols_x = []
@@ -545,7 +574,7 @@ def _recommend(runner, models, post, detect, cands, pts, lik, campaign) -> list:
     return design.recommend(runner, systems, contrasts, pts, sigma, amp, bool(campaign.ramps), hidden)
 
 
-__all__ = ["CALIBRATION", "INSUFFICIENT", "decide", "MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE",
+__all__ = ["CALIBRATION", "UNCALIBRATED", "INSUFFICIENT", "decide", "MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE",
            "Diagnosis", "diagnose", "locate", "calibrated_system", "shortfall", "speeds_of", "noise_level",
            "CAL_BOUND", "CAL_SCAN", "CAL_STEP_FRACTIONS", "COARSE_SEGMENTS", "PRIOR_LOG_SD", "REFINE_EVALUATIONS",
            "_effect_grid", "_lstsq_bounded", "_resid", "with_effect"]

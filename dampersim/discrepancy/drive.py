@@ -80,12 +80,14 @@ def rezeroed(point, offset_nm: float = 0.0, gain: float = 1.0):
     return dataclasses.replace(point, input_torque=(np.asarray(point.input_torque) - offset_nm) / gain)
 
 
-def simulate_point(system, point) -> dict:
+def simulate_point(system, point, halves: bool = False) -> dict:
     """Simulate one measured point with ``system``.
 
     torsional: {"orders": output order amplitudes [N m] over the record's revolutions, read
     on the record's measured angle like the measured output, "coefficients": the same as
-    complex coefficients (:func:`tracking.driven_coefficients`)};
+    complex coefficients (:func:`tracking.driven_coefficients`), and with ``halves`` "halves":
+    the coefficients over each half of the record, read like the measured halves
+    (:func:`tracking.half_coefficients`, for the repeatability of the residual)};
     ramp: {"torque", "windup"} on the record's time base (windup [rad]).
     """
 
@@ -93,7 +95,10 @@ def simulate_point(system, point) -> dict:
         ex = MeasuredTorque(point.speed, point.time, point.input_torque, settle=DRIVE_SETTLE)
         res = simulate(system, ex, record_segments=False)
         c = tracking.driven_coefficients(point, res, ex.steady_start, ORDERS)
-        return {"orders": np.abs(c), "coefficients": c}
+        out = {"orders": np.abs(c), "coefficients": c}
+        if halves:
+            out["halves"] = tracking.half_coefficients(point, tracking.driven_output(point, res, ex.steady_start), ORDERS)
+        return out
     ex = RecordedRamp(point.speed, point.time, point.input_torque)
     res = simulate(system, ex, record_segments=False)
     wind = np.interp(point.time, res.t, res.windup_total)
@@ -101,11 +106,12 @@ def simulate_point(system, point) -> dict:
 
 
 def run_task(args) -> dict:
-    """:func:`simulate_point` of ``args`` = (system, point), or {"error": text} when the run
-    raised or gave a non-finite result (a diverged run must not read as numbers)."""
-    system, point = args
+    """:func:`simulate_point` of ``args`` = (system, point) or (system, point, halves), or
+    {"error": text} when the run raised or gave a non-finite result (a diverged run must not
+    read as numbers)."""
+    system, point, *rest = args
     try:
-        out = simulate_point(system, point)
+        out = simulate_point(system, point, *rest)
     except Exception as exc:  # noqa: BLE001 - a failed point is reported, not fatal
         return {"error": f"{type(exc).__name__}: {exc}"}
     bad = [k for k, v in out.items() if not np.all(np.isfinite(np.asarray(v)))]
@@ -147,16 +153,20 @@ class Runner:
         return list(self._pool.map(fn, tasks, chunksize=max(1, len(tasks) // (4 * self.workers))))
 
 
-def coefficients_of(runner, system, points, errors: dict | None = None) -> np.ndarray:
+def coefficients_of(runner, system, points, errors: dict | None = None, halves: dict | None = None) -> np.ndarray:
     """Complex output order coefficients [N m] of ``system`` driven by each torsional point
     (at :func:`diagnosis_system`'s step); a failed run gives a row of complex NaN, never
-    numbers, and its message goes into ``errors[row]`` when a dict is given."""
+    numbers, and its message goes into ``errors[row]`` when a dict is given. ``halves``, when
+    a dict is given, receives each run's coefficients over the record's two halves (``halves[row]``,
+    shape (2, orders))."""
     sysd = diagnosis_system(system)
-    out = runner.map([(sysd, p) for p in points])
+    out = runner.map([(sysd, p, True) if halves is not None else (sysd, p) for p in points])
     rows = np.full((len(out), len(ORDERS)), np.nan + 1j * np.nan)
     for i, r in enumerate(out):
         if "coefficients" in r:
             rows[i] = r["coefficients"]
+            if halves is not None:
+                halves[i] = r["halves"]
         elif errors is not None:
             errors[i] = r.get("error", "no result")
     return rows

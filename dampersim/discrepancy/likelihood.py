@@ -19,7 +19,8 @@ s / sqrt(2)):
   mean of that sample's square and the per-order median of the squares over the campaign's
   points divided by ln 2 (the median of an exponential variable is ln 2 of its mean): a
   single near-zero sample must not make a cell look exact, nor a single large one hide a
-  point;
+  point. The diagnosis can instead take half the difference of the halves' residuals against
+  the model driven by the record (:func:`residual_half_sigma`, its ``repeatability="residual"``);
 * **model**: the change of the model's coefficient when the same drive runs with two thirds
   of the spring segments (discretisation, and the physical scatter of chaotic orders, which
   moves by tens of per cent with any such change);
@@ -27,6 +28,12 @@ s / sqrt(2)):
   the measured input torque moved up and down by :func:`input_mean_sd` (the input channel's
   zero and gain are not known better than that, and the drive's mean torque moves with
   them; near a knee of the characteristic the orders follow the mean torque steeply);
+* **uncalibrated parameters**: the root mean square of the model's change when the same
+  drive runs with the parameter set moved one standard uncertainty up and down along each
+  direction the calibration cannot follow (:data:`~dampersim.discrepancy.fitting.UNCALIBRATED`:
+  the split inside a calibration group, the tertiary inertia), summed over the directions.
+  A calibration that scales a group together cannot undo an error in the group's split; near
+  a knee of the characteristic that error moves the orders by many times a record's noise;
 * **mains pick-up** on the output channel where a mains line falls on an order, measured on
   the campaign's records where it falls between the orders (:mod:`dampersim.discrepancy.pickup`);
 * a floor of SIGMA_FLOOR_SHARE of the campaign's largest output order.
@@ -98,47 +105,62 @@ def measured_coefficients(point, orders) -> np.ndarray:
 
 def split_half_sigma(point, orders) -> np.ndarray:
     """Complex standard deviation [N m] of each output order coefficient from the record's
-    two halves (see the module docstring). Both halves are read on the whole record's
-    tracked angle, so their phases share one reference and need no turning."""
-    n = len(point.output_torque) // 2
-    halves = [slice(0, n), slice(n, 2 * n)]
-    if getattr(point, tracking.SPEED_CHANNEL, None) is None:
-        (i1, o1), (i2, o2) = [(tracking.point_orders(point, point.input_torque, orders, sl).astype(complex),
-                               tracking.point_orders(point, point.output_torque, orders, sl).astype(complex))
-                              for sl in halves]
-        a_in = tracking.point_orders(point, point.input_torque, orders, slice(0, 2 * n)).astype(complex)
-    else:
-        read = tracking.record_angle_reader(point, orders)
-        (i1, o1), (i2, o2) = [(read(point.input_torque, sl), read(point.output_torque, sl)) for sl in halves]
-        a_in = read(point.input_torque, slice(0, 2 * n))
+    two halves, measured alone: for the orders the input carries, half the difference of the
+    halves' ratios output/input times the whole record's input coefficient, else half the
+    difference of the halves' output coefficients (:func:`tracking.half_coefficients`).
+    The diagnosis's default record term (its ``repeatability="split_half"``)."""
+    (i1, i2), (o1, o2) = (tracking.half_coefficients(point, point.input_torque, orders),
+                          tracking.half_coefficients(point, point.output_torque, orders))
+    n = len(point.time) // 2
+    read = tracking.record_angle_reader(point, orders)
+    a_in = (tracking.point_orders(point, point.input_torque, orders, slice(0, 2 * n)).astype(complex) if read is None
+            else read(point.input_torque, slice(0, 2 * n)))
     driven = np.abs(a_in) >= 0.01 * max(float(np.abs(a_in).max()), 1e-12)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = 0.5 * np.abs(o1 / i1 - o2 / i2) * np.abs(a_in)
     return np.where(driven & np.isfinite(ratio), ratio, 0.5 * np.abs(o1 - o2))
 
 
-def sigma_variances(repeat, model_change, meas, pickup=None, offset_change=None) -> dict:
+def residual_half_sigma(point, model_halves, orders) -> np.ndarray:
+    """Complex standard deviation [N m] of each cell's residual from the record's two halves:
+    half the difference of the halves' residuals, measured output minus the model driven by
+    the record (``model_halves``: the model's :func:`tracking.half_coefficients`, shape (2,
+    orders)). The model reproduces what the recorded input drives; what it cannot reproduce
+    from the record (sensor noise, the input channel's noise carried through the model,
+    cycle-to-cycle scatter) differs between the halves, a systematic gap does not. The
+    diagnosis's ``repeatability="residual"``; measured against a known truth by
+    bench/bench_repeatability.py."""
+    m1, m2 = tracking.half_coefficients(point, point.output_torque, orders)
+    y1, y2 = np.asarray(model_halves)
+    return 0.5 * np.abs((m1 - y1) - (m2 - y2))
+
+
+def sigma_variances(repeat, model_change, meas, pickup=None, offset_change=None, uncalibrated=None) -> dict:
     """The terms of :func:`cell_sigma`, each a variance [N m^2] per (point, order) cell:
     ``repeat`` (the mean of the cell's split-half variance and the per-order median over
     points), ``model`` (the discretisation change), ``mains`` (``pickup``), ``input`` (the
-    model's change under the input channel's uncertainty, ``offset_change``) and ``floor``
-    (SIGMA_FLOOR_SHARE of the largest measured order); absent terms are zeros."""
+    model's change under the input channel's uncertainty, ``offset_change``),
+    ``uncalibrated`` (the model's change along the directions the calibration cannot
+    follow, a standard deviation [N m]) and ``floor`` (SIGMA_FLOOR_SHARE of the largest
+    measured order); absent terms are zeros."""
     repeat = np.asarray(repeat, dtype=float)
     # the square of a complex Gaussian's magnitude is exponential: its median is ln 2 of its mean
     pooled = np.median(repeat ** 2, axis=0, keepdims=True) / math.log(2.0)
     floor = SIGMA_FLOOR_SHARE * max(float(np.nanmax(np.abs(meas))), 1e-9)
     model_change = np.nan_to_num(np.asarray(model_change, dtype=float), nan=0.0)
-    return {"repeat": 0.5 * (repeat ** 2 + pooled), "model": model_change ** 2,
-            "mains": np.zeros(repeat.shape) if pickup is None else np.asarray(pickup, dtype=float) ** 2,
-            "input": np.zeros(repeat.shape) if offset_change is None else np.asarray(offset_change, dtype=float) ** 2,
-            "floor": np.full(repeat.shape, floor ** 2)}
+
+    def term(x):
+        return np.zeros(repeat.shape) if x is None else np.asarray(x, dtype=float) ** 2
+
+    return {"repeat": 0.5 * (repeat ** 2 + pooled), "model": model_change ** 2, "mains": term(pickup),
+            "input": term(offset_change), "uncalibrated": term(uncalibrated), "floor": np.full(repeat.shape, floor ** 2)}
 
 
-def cell_sigma(repeat, model_change, meas, pickup=None, offset_change=None) -> np.ndarray:
+def cell_sigma(repeat, model_change, meas, pickup=None, offset_change=None, uncalibrated=None) -> np.ndarray:
     """Complex standard deviation [N m] of every (point, order) cell: the root of the sum of
     :func:`sigma_variances` (module docstring)."""
-    v = sigma_variances(repeat, model_change, meas, pickup, offset_change)
-    return np.sqrt(v["repeat"] + v["model"] + (v["mains"] + v["input"]) + v["floor"])
+    v = sigma_variances(repeat, model_change, meas, pickup, offset_change, uncalibrated)
+    return np.sqrt(v["repeat"] + v["model"] + (v["mains"] + v["input"]) + v["uncalibrated"] + v["floor"])
 
 
 def robust_weights(point_chi2, n_per_point: int):
@@ -284,5 +306,5 @@ class Likelihood:
         return float(np.sum(self.point_chi2(y, rows, nuisance)) / (2 * len(rows) * len(self.orders)))
 
 
-__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma",
+__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma", "residual_half_sigma",
            "sigma_variances", "cell_sigma", "robust_weights", "Likelihood"]

@@ -66,6 +66,30 @@ def record_angle_reader(point, orders):
     return read
 
 
+def halves(point) -> tuple:
+    """The record's two halves as slices of its samples (an odd last sample is left out)."""
+    n = len(point.time) // 2
+    return slice(0, n), slice(n, 2 * n)
+
+
+def half_coefficients(point, signal, orders) -> np.ndarray:
+    """Order coefficients [N m] of ``signal`` (on the point's time base) over each of the
+    record's two :func:`halves`, shape (2, orders): complex, both halves read on the whole
+    record's tracked angle (one phase reference); without a speed channel, each half's real
+    amplitudes at the nominal speed."""
+    read = record_angle_reader(point, orders)
+    if read is None:
+        return np.array([point_orders(point, signal, orders, part).astype(complex) for part in halves(point)])
+    return np.array([read(signal, part) for part in halves(point)])
+
+
+def driven_output(point, res, steady_start: float) -> np.ndarray:
+    """Output torque [N m] of a model run ``res`` driven by the point's record (played from
+    ``steady_start`` [s] on), interpolated onto the record's time base."""
+    w = res.window(point.duration)
+    return np.interp(point.time, np.asarray(res.t[w], dtype=float) - steady_start, np.asarray(res.output_torque[w]))
+
+
 def tracked(point, signal, orders, part: slice = slice(None)) -> TrackedOrders:
     """Tracked order spectrum of ``signal`` (a channel of ``point``, [N m]) over ``part`` of
     the record. The point must have a speed channel."""
@@ -109,4 +133,5 @@ def driven_orders(point, res, steady_start: float, orders) -> np.ndarray:
     return np.abs(driven_coefficients(point, res, steady_start, orders))
 
 
-__all__ = ["SPEED_CHANNEL", "point_speed", "point_angle", "record_angle_reader", "tracked", "point_orders", "driven_coefficients", "driven_orders"]
+__all__ = ["SPEED_CHANNEL", "point_speed", "point_angle", "record_angle_reader", "halves", "half_coefficients",
+           "driven_output", "tracked", "point_orders", "driven_coefficients", "driven_orders"]

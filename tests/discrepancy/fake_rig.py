@@ -18,7 +18,7 @@ import zlib
 
 import numpy as np
 
-from dampersim.discrepancy import drive
+from dampersim.discrepancy import drive, tracking
 from dampersim.discrepancy.campaign import Campaign, MeasuredPoint
 from dampersim.discrepancy.likelihood import measured_coefficients
 from dampersim.errors import SimulationDiverged
@@ -97,17 +97,19 @@ def campaign(points, name: str = "fake") -> Campaign:
 def fake_model(fail=None):
     """A replacement for ``drive.simulate_point``. fail(system, point) -> None, "raise"
     (the integration diverges) or "nan" (the run returns non-finite amplitudes)."""
-    def simulate_point(system, p):
+    def simulate_point(system, p, halves=False):
         how = fail(system, p) if fail else None
         if how == "raise":
             raise SimulationDiverged(0.1, "runaway windup", system.solver.time_step)
         if how == "nan":
-            return {"orders": np.full(len(drive.ORDERS), np.nan), "coefficients": np.full(len(drive.ORDERS), np.nan + 0j)}
+            return {"orders": np.full(len(drive.ORDERS), np.nan), "coefficients": np.full(len(drive.ORDERS), np.nan + 0j),
+                    "halves": np.full((2, len(drive.ORDERS)), np.nan + 0j)}
         amps = amplitudes(system, p.speed_rpm, p.mean_torque_nm)
         # read like the measured output: the same tracked operator on the same record
         out = dataclasses.replace(p, output_torque=signal(p.time, p.speed_rpm, p.mean_torque_nm, amps))
         c = measured_coefficients(out, drive.ORDERS)
-        return {"orders": np.abs(c), "coefficients": c}
+        return {"orders": np.abs(c), "coefficients": c,
+                "halves": tracking.half_coefficients(out, out.output_torque, drive.ORDERS)}
     simulate_point.fake = True  # tells fake_design_task to stand in for the design's runs too
     return simulate_point
 

@@ -60,3 +60,33 @@ def test_joint_screen_lets_an_effect_take_back_imitating_calibration():
 def test_synth_refuses_unknown_point_ids(tmp_path):
     with pytest.raises(InputError, match="map_9999_1"):
         synthesize(tmp_path / "c", points=["tc_1200", "map_9999_1"], record=0.5)
+
+
+def test_uncalibrated_directions_move_only_what_the_calibration_cannot_follow():
+    import math
+
+    from dampersim.discrepancy.fitting import CALIBRATION, ESTIMATE_LOG_SD, UNCALIBRATED, uncalibrated_systems
+    from dampersim.discrepancy.synth import ESTIMATED
+    from dampersim.parameters import default_parameters
+    from dampersim.parameters.io import flat_values
+
+    # every estimated parameter is either calibrated or carried as an uncertainty direction
+    covered = {n for names in CALIBRATION.values() for n in names} | {n for d in UNCALIBRATED.values() for n in d}
+    assert set(ESTIMATED) <= covered
+    base = default_parameters()
+    flat = flat_values(base)
+    moved = uncalibrated_systems(base)
+    assert [name for name, _ in moved] == list(UNCALIBRATED)
+    for name, (up, down) in moved:
+        direction = UNCALIBRATED[name]
+        step = ESTIMATE_LOG_SD / math.sqrt(len(direction))
+        for s, sign in ((up, 1.0), (down, -1.0)):
+            f = flat_values(s)
+            changed = {n for n in flat if f[n] != flat[n]}
+            assert changed == set(direction)
+            for n, w in direction.items():
+                assert math.log(f[n] / flat[n]) == pytest.approx(sign * w * step, rel=1e-12)
+            # a split keeps the group's log mean, the level a calibration factor scales
+            group = [g for g in CALIBRATION.values() if set(direction) <= set(g)]
+            if len(direction) > 1:
+                assert group and sum(math.log(f[n] / flat[n]) for n in group[0]) == pytest.approx(0.0, abs=1e-12)

@@ -17,6 +17,7 @@ import pytest
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import NAMES
+from dampersim.discrepancy.fitting import UNCALIBRATED
 from dampersim.discrepancy.synth import synthesize
 from dampersim.parameters import at_thesis_segments
 
@@ -75,8 +76,10 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     # each candidate is fitted from one start when its screen is clear: 684 runs on commit
     # 19acb87 against 876 when both starts were fitted (docs/discrepancy.md, Known limits);
     # since then every point also runs with its input moved up and down (the input channel's
-    # uncertainty), 18 runs more for these nine points
-    assert d.simulations <= 700 + 2 * len(POINTS)
+    # uncertainty) and with the set moved up and down along each of the three directions the
+    # calibration cannot follow (fitting.UNCALIBRATED), 8 runs more per point: 750 runs here
+    # and 771 in the control campaign, measured on the commit that added the last six
+    assert d.simulations <= 700 + (2 + 2 * len(UNCALIBRATED)) * len(POINTS)
 
 
 @pytest.mark.slow

@@ -85,13 +85,13 @@ def _input_sensitive_model(fail_when_moved=None):
 
     base = F.fake_model()
 
-    def simulate_point(system, p):
+    def simulate_point(system, p, halves=False):
         shift = float(np.mean(p.input_torque)) - p.mean_torque_nm
         if p.id == fail_when_moved and abs(shift) > 1.0:
             raise RuntimeError("diverged at the moved input")
         out = base(system, p)
         k = 1.0 + 0.01 * shift
-        return {"orders": k * out["orders"], "coefficients": k * out["coefficients"]}
+        return {"orders": k * out["orders"], "coefficients": k * out["coefficients"], "halves": k * out["halves"]}
 
     simulate_point.fake = True
     return simulate_point
@@ -104,14 +104,15 @@ def _campaign():
 
 
 def _spy_on_cell_sigma(monkeypatch, dg):
-    """Record the input-check and pick-up terms diagnose passes to cell_sigma (the returned
-    dict's "offset" and "pickup") and pass everything on."""
+    """Record the terms diagnose passes to cell_sigma (the returned dict's "repeat", "offset",
+    "pickup" and "uncalibrated") and pass everything on."""
     seen = {}
     real = dg.cell_sigma
 
-    def spy(repeat, model_change, meas, pickup=None, offset_change=None):
-        seen["offset"], seen["pickup"] = offset_change, pickup
-        return real(repeat, model_change, meas, pickup, offset_change)
+    def spy(repeat, model_change, meas, pickup=None, offset_change=None, uncalibrated=None):
+        seen["offset"], seen["pickup"], seen["uncalibrated"] = offset_change, pickup, uncalibrated
+        seen["repeat"] = repeat
+        return real(repeat, model_change, meas, pickup, offset_change, uncalibrated)
 
     monkeypatch.setattr(dg, "cell_sigma", spy)
     return seen

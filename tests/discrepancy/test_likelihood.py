@@ -85,11 +85,16 @@ def test_cell_sigma_adds_the_pickup_and_the_input_offset_check_in_quadrature():
     from dampersim.discrepancy.likelihood import SIGMA_FLOOR_SHARE, sigma_variances
 
     mc = np.full((3, 8), 0.05)
-    v = sigma_variances(rep, mc, meas, pick, off)
-    assert sorted(v) == ["floor", "input", "mains", "model", "repeat"]
-    assert np.sqrt(sum(v.values())) == pytest.approx(cell_sigma(rep, mc, meas, pick, off), rel=1e-12)
+    unc = np.zeros((3, 8))
+    unc[2, 1] = 0.4  # a knee point's order 2, moved by the group split
+    v = sigma_variances(rep, mc, meas, pick, off, unc)
+    assert sorted(v) == ["floor", "input", "mains", "model", "repeat", "uncalibrated"]
+    assert np.sqrt(sum(v.values())) == pytest.approx(cell_sigma(rep, mc, meas, pick, off, unc), rel=1e-12)
     assert v["floor"] == pytest.approx(np.full((3, 8), (SIGMA_FLOOR_SHARE * 10.0) ** 2))
     assert v["mains"] == pytest.approx(pick ** 2) and v["input"] == pytest.approx(off ** 2)
+    assert v["uncalibrated"] == pytest.approx(unc ** 2)
+    assert cell_sigma(rep, mc, meas, pick, off, unc) == pytest.approx(
+        np.sqrt(cell_sigma(rep, mc, meas, pick, off) ** 2 + unc ** 2), rel=1e-12)
 
 
 def test_pooled_repeatability_is_unbiased_for_gaussian_noise():

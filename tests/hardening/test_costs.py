@@ -150,8 +150,10 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_ITERATIONS == defaults["calibration_iterations"]
     assert costs.DIAGNOSIS_SHORTLIST == defaults["shortlist"]
     assert costs.DIAGNOSIS_FACTORS == len(dg.CALIBRATION)
-    assert costs.DIAGNOSIS_COMPARE_RUNS == 4  # as given, coarse, input moved up and down
+    # as given, coarse, input moved up and down, the set moved up and down along each uncalibrated direction
+    assert costs.DIAGNOSIS_COMPARE_RUNS == 4 + 2 * len(dg.UNCALIBRATED)
     assert costs.DIAGNOSIS_SCAN == len(dg.CAL_SCAN)
+    assert costs.DIAGNOSIS_DERIVATIVE_STEPS == len(dg.fitting.CAL_DERIVATIVE_STEPS)
     assert costs.DIAGNOSIS_STEP_TRIALS == len(dg.CAL_STEP_FRACTIONS)
     grid = inspect.signature(dg._effect_grid).parameters["n"].default
     assert costs.DIAGNOSIS_FIT_RUNS == grid + dg.REFINE_EVALUATIONS + 3 + 1
@@ -167,7 +169,7 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_RAMP_DETECT == len(design.RAMP_PROTOCOLS) * len(EFFECTS["clutch_slip"].magnitudes)
     assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9
     # 12 points: 8 training, 4 held out (every third)
-    assert costs.diagnosis_runs(12, 8) == (48 + 24 * 8 + 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
+    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
                                            + 15 * 8 + 4 + 3 * 8 * 8)
 
 

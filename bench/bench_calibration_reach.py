@@ -1,0 +1,125 @@
+"""Does the calibration reach the truth's own factors? One CI campaign, its truth known.
+
+The diagnosis calibrates six log scale factors (``fitting.CALIBRATION``) on the training
+points. For a synthetic campaign the truth's factors are known up to what the calibration
+cannot follow (``fitting.UNCALIBRATED``): each group's factor is the mean log ratio of its
+members' truth values to the diagnosed set's ("projected"). This bench diagnoses one of the
+strict CI identification campaigns (bench_control_misfit.py's ``ci-control`` or
+``ci-absorber``: 18/8 model, 24/10 truth, nine points of 0.8 s, 3 % perturbation, seed 3;
+``--daq`` as there) and prints, as one JSON line:
+
+* the calibrated and the projected factors (log);
+* the calibration's objective on the training points (the likelihood as the diagnosis left
+  it: its last nuisance and robust weights, plus the factors' prior) at both;
+* every point's reduced chi^2 with the calibrated model and with the projected one, each at
+  the channel nuisance fitted to its training points;
+* the diagnosis's verdict and held-out reduced chi^2;
+* per order, the largest change between the truth's parameters (at the diagnosed
+  discretisation) and the projected factors over the points (what the calibration cannot
+  follow; with the absorber hidden, the absorber too), and the range over points of the cell
+  uncertainty's term for it (``likelihood.sigma_variances``' ``uncalibrated``).
+
+A projected objective well below the calibrated one means the calibration stopped short of a
+better minimum it could have reached (the truth's remaining difference, the uncalibrated
+directions, the finer discretisation and the DAQ chain are in both).
+
+    python bench/bench_calibration_reach.py
+    python bench/bench_calibration_reach.py --case ci-absorber --derivative-steps 0.05
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_control_misfit as M  # noqa: E402 - the CI campaigns and their diagnosis options
+
+from dampersim.discrepancy import diagnose as dg  # noqa: E402
+from dampersim.discrepancy import drive, fitting, likelihood, synth  # noqa: E402
+from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
+from dampersim.parameters import at_thesis_segments  # noqa: E402
+from dampersim.parameters.io import flat_values  # noqa: E402
+
+
+def projected_factors(base, applied: dict) -> np.ndarray:
+    """Each calibration group's mean log ratio of the truth's values to ``base``'s."""
+    flat = flat_values(base)
+    return np.array([np.mean([math.log(float(applied.get(n, flat[n])) / float(flat[n])) for n in names])
+                     for names in fitting.CALIBRATION.values()])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--case", choices=("ci-control", "ci-absorber"), default="ci-control")
+    ap.add_argument("--daq", default="random", help="none, random, or parts of the random chain")
+    ap.add_argument("--derivative-steps", type=float, nargs="+", default=None,
+                    help="the calibration's finite-difference log steps (fitting.CAL_DERIVATIVE_STEPS)")
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args(argv)
+    bad = [h for h in a.derivative_steps or () if not 0.0 < h < 1.0]
+    if bad:
+        ap.error(f"--derivative-steps {bad[0]}: accepted are log steps between 0 and 1, both excluded")
+    if a.derivative_steps:
+        fitting.CAL_DERIVATIVE_STEPS = tuple(a.derivative_steps)  # read at call time, in this process only
+    base = at_thesis_segments()
+    effects = [("pendulum_absorber", {"inertia": 0.002})] if a.case == "ci-absorber" else []
+    with tempfile.TemporaryDirectory() as d:
+        doc = synth.synthesize(os.path.join(d, "c"), effects=effects, perturb=0.03, noise_db=0.0, seed=M.CI_SEED,
+                               points=M.CI_POINTS, record=0.8, workers=a.workers, daq=M.ci_daq(a.daq), base=base)
+        camp = read_campaign(os.path.join(d, "c"))
+    applied = {k: v for k, v in doc["perturbed"].items() if not k.startswith("solver.")}
+    seen, terms = [], {}
+    real, real_sigma = dg.Likelihood, dg.cell_sigma
+
+    def keep(*args, **kwargs):
+        seen.append(real(*args, **kwargs))
+        return seen[-1]
+
+    def keep_sigma(*args, **kwargs):
+        terms.update(likelihood.sigma_variances(*args, **kwargs))
+        return real_sigma(*args, **kwargs)
+
+    dg.Likelihood, dg.cell_sigma = keep, keep_sigma
+    try:
+        res = dg.diagnose(camp, base, workers=a.workers, candidates=M.CI_CANDIDATES, calibration_iterations=3,
+                          shortlist=2, recommend=False).to_json()
+    finally:
+        dg.Likelihood, dg.cell_sigma = real, real_sigma
+    lik, pts = seen[0], camp.torsional
+    every = list(range(len(pts)))
+    train = [i for i in every if i % 3 != 1]
+    x_cal = np.log([res["calibration"][k] for k in fitting.CALIBRATION])
+    x_proj = projected_factors(base, applied)
+    row = {"case": a.case, "daq": a.daq, "derivative_steps": list(fitting.CAL_DERIVATIVE_STEPS),
+           "verdict": res["verdict"], "reduced_chi2_held_out": res["likelihood"]["reduced_chi2_held_out"]}
+    truth, _ = synth.truth_system(base, effects, 0.0, None, applied, fine=False)
+    ys = {}
+    with drive.Runner(a.workers) as r:
+        ys["truth"] = drive.coefficients_of(r, truth, pts)
+        for label, x in (("calibrated", x_cal), ("projected", x_proj)):
+            y = ys[label] = drive.coefficients_of(r, fitting.calibrated_system(base, x), pts)
+            row[f"factors_{label}"] = dict(zip(fitting.CALIBRATION, np.round(x, 4).tolist()))
+            loss, nu = lik.profile(y[train], train)
+            row[f"objective_{label}"] = round(loss + float(np.sum(x ** 2)) / fitting.PRIOR_LOG_SD ** 2, 2)
+            chi = lik.point_chi2(y, every, nu) / (2 * len(drive.ORDERS))
+            row[f"point_reduced_chi2_{label}"] = {p.id: round(float(c), 3) for p, c in zip(pts, chi)}
+    # what the projection leaves (the uncalibrated directions, and the absorber where hidden,
+    # which the projection leaves out) against the term that carries it, per order [N m]
+    row["max_truth_minus_projected_by_order_nm"] = np.round(np.abs(ys["truth"] - ys["projected"]).max(axis=0), 3).tolist()
+    unc = np.sqrt(terms["uncalibrated"]) if len(terms.get("uncalibrated", ())) == len(pts) else None
+    row["uncalibrated_term_range_by_order_nm"] = (None if unc is None else
+                                                  [[round(float(lo), 3), round(float(hi), 3)]
+                                                   for lo, hi in zip(unc.min(axis=0), unc.max(axis=0))])
+    print(json.dumps(row), flush=True)
+
+
+if __name__ == "__main__":
+    main()
