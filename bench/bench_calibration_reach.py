@@ -8,7 +8,8 @@ strict CI identification campaigns (bench_control_misfit.py's ``ci-control`` or
 ``ci-absorber``: 18/8 model, 24/10 truth, nine points of 0.8 s, 3 % perturbation, seed 3;
 ``--daq`` as there) and prints, as one JSON line:
 
-* the calibrated and the projected factors (log);
+* the calibrated factors (the calibration's own, before any effect is fitted with them) and
+  the projected ones (log);
 * the calibration's objective on the training points (the likelihood as the diagnosis left
   it: its last nuisance and robust weights, plus the factors' prior) at both;
 * every point's reduced chi^2 with the calibrated model and with the projected one, each at
@@ -76,8 +77,8 @@ def main(argv=None):
                                points=M.CI_POINTS, record=0.8, workers=a.workers, daq=M.ci_daq(a.daq), base=base)
         camp = read_campaign(os.path.join(d, "c"))
     applied = {k: v for k, v in doc["perturbed"].items() if not k.startswith("solver.")}
-    seen, terms = [], {}
-    real, real_sigma = dg.Likelihood, dg.cell_sigma
+    seen, terms, starts = [], {}, []
+    real, real_sigma, real_namer = dg.Likelihood, dg.cell_sigma, dg.Namer
 
     def keep(*args, **kwargs):
         seen.append(real(*args, **kwargs))
@@ -87,16 +88,23 @@ def main(argv=None):
         terms.update(likelihood.sigma_variances(*args, **kwargs))
         return real_sigma(*args, **kwargs)
 
-    dg.Likelihood, dg.cell_sigma = keep, keep_sigma
+    def keep_namer(runner, lik, train, ptr, jac, start, *rest):
+        starts.append(start)  # the calibration's result, before any effect is fitted with it
+        return real_namer(runner, lik, train, ptr, jac, start, *rest)
+
+    dg.Likelihood, dg.cell_sigma, dg.Namer = keep, keep_sigma, keep_namer
     try:
         res = dg.diagnose(camp, base, workers=a.workers, candidates=M.CI_CANDIDATES, calibration_iterations=3,
                           shortlist=2, recommend=False).to_json()
     finally:
-        dg.Likelihood, dg.cell_sigma = real, real_sigma
+        dg.Likelihood, dg.cell_sigma, dg.Namer = real, real_sigma, real_namer
     lik, pts = seen[0], camp.torsional
+    if lik.meas.shape[0] != len(pts) or not starts:
+        raise SystemExit(f"the diagnosis left points out or stopped before naming ({res['verdict']}: "
+                         f"{res.get('message', '')}); this bench compares whole campaigns only")
     every = list(range(len(pts)))
     train = [i for i in every if i % 3 != 1]
-    x_cal = np.log([res["calibration"][k] for k in fitting.CALIBRATION])
+    x_cal = np.asarray(starts[0]["calibrated"][1], dtype=float)
     x_proj = projected_factors(base, applied)
     row = {"case": a.case, "daq": a.daq, "derivative_steps": list(fitting.CAL_DERIVATIVE_STEPS),
            "verdict": res["verdict"], "reduced_chi2_held_out": res["likelihood"]["reduced_chi2_held_out"]}

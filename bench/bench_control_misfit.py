@@ -119,7 +119,8 @@ def main(argv=None):
         if not 0.0 < args.floor < 1.0:
             ap.error(f"--floor {args.floor}: accepted is a share between 0 and 1, both excluded")
         likelihood.SIGMA_FLOOR_SHARE = args.floor  # read at call time, in this process only
-    floor = (f"floor={likelihood.SIGMA_FLOOR_SHARE:g} derivative_steps={','.join(f'{h:g}' for h in fitting.CAL_DERIVATIVE_STEPS)} "
+    steps = ",".join(f"{h:g}" for h in fitting.CAL_DERIVATIVE_STEPS)
+    floor = (f"floor={likelihood.SIGMA_FLOOR_SHARE:g} derivative_steps={steps} "
              f"estimate_sd={fitting.ESTIMATE_LOG_SD:g}")
     if args.case == "benchmark":
         for name in args.truths:

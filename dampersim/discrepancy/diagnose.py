@@ -26,7 +26,7 @@ from dampersim.discrepancy import design, drive, fitting, naming, pickup, select
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
-                                           GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, UNCALIBRATED,
+                                           ESTIMATE_LOG_SD, GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, UNCALIBRATED,
                                            _effect_grid, _lstsq_bounded, _resid, _rms, calibrated_system,
                                            coarse_system, uncalibrated_systems)
 from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, input_mean_sd, measured_coefficients,
@@ -112,15 +112,16 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the orders' sensitivity to what the calibration cannot follow (fitting.UNCALIBRATED):
         # the same drive with the set moved one standard uncertainty up and down along each direction
         err_unc, unc_var = {}, np.zeros(y0.shape)
-        for _, moved_sets in uncalibrated_systems(system):
+        for direction, moved_sets in uncalibrated_systems(system):
             for s_moved in moved_sets:
                 errs = {}
                 unc_var += 0.5 * np.abs(drive.coefficients_of(runner, s_moved, every, errs) - y0) ** 2
-                err_unc.update({i: msg for i, msg in errs.items() if i not in err_unc})
+                err_unc.update({i: f"{direction.replace('_', ' ')}: {msg}" for i, msg in errs.items() if i not in err_unc})
         left_out = {i: f"the model run with the parameter set as given failed ({err0[i]})" if i in err0 else
                     f"the discretisation check (two thirds of the spring segments) failed ({err_coarse[i]})"
                     if i in err_coarse else f"the input check (input moved by {sd_in[i]:.3g} N m) failed ({err_in[i]})"
-                    if i in err_in else f"the uncalibrated-parameter check (fitting.UNCALIBRATED) failed ({err_unc[i]})"
+                    if i in err_in else f"the check of what the calibration cannot follow (the estimated parameters "
+                    f"moved by {100 * ESTIMATE_LOG_SD:.0f} %) failed ({err_unc[i]})"
                     for i in sorted({*err0, *err_coarse, *err_in, *err_unc})}
         problems += [drive.run_problem(every[i], f"{why}; the point is left out of the calibration, the effect fits and "
                                        "the verdict") for i, why in left_out.items()]
@@ -169,7 +170,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 if ck < best[0]:
                     best = (ck, xk, yk)
         _, x, y_tr = best
-        dy = np.zeros((len(x),) + y_tr.shape, dtype=complex)  # d coefficients / d log factor
+        # d coefficients / d log factor, per derivative step; the first step's last one is the
+        # calibration's sensitivity handed on to the naming (as before the second step was added)
+        dys = {h: np.zeros((len(x),) + y_tr.shape, dtype=complex) for h in fitting.CAL_DERIVATIVE_STEPS}
         for it in range(calibration_iterations):
             report(0.08 + 0.25 * it / calibration_iterations, f"calibrate: iteration {it + 1} of {calibration_iterations}")
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
@@ -177,6 +180,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             # the sensitivities from the longer step first; when no step length lowers the cost
             # along its direction, from the shorter one (fitting.CAL_DERIVATIVE_STEPS)
             for h in fitting.CAL_DERIVATIVE_STEPS:
+                dy = dys[h]
                 for k in range(len(x)):
                     xk = x.copy()
                     xk[k] += h
@@ -195,6 +199,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             if not moved:
                 break
         lik.fit_nuisance(y_tr, train)  # the calibrated model's nuisance and robust weights
+        dy = dys[fitting.CAL_DERIVATIVE_STEPS[0]]
         jac = np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
@@ -574,7 +579,7 @@ def _recommend(runner, models, post, detect, cands, pts, lik, campaign) -> list:
     return design.recommend(runner, systems, contrasts, pts, sigma, amp, bool(campaign.ramps), hidden)
 
 
-__all__ = ["CALIBRATION", "UNCALIBRATED", "INSUFFICIENT", "decide", "MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE",
-           "Diagnosis", "diagnose", "locate", "calibrated_system", "shortfall", "speeds_of", "noise_level",
-           "CAL_BOUND", "CAL_SCAN", "CAL_STEP_FRACTIONS", "COARSE_SEGMENTS", "PRIOR_LOG_SD", "REFINE_EVALUATIONS",
-           "_effect_grid", "_lstsq_bounded", "_resid", "with_effect"]
+__all__ = ["CALIBRATION", "UNCALIBRATED", "INSUFFICIENT", "REPEATABILITY", "decide", "MIN_TORSIONAL_POINTS",
+           "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE", "Diagnosis", "diagnose", "locate", "calibrated_system",
+           "shortfall", "speeds_of", "noise_level", "CAL_BOUND", "CAL_SCAN", "CAL_STEP_FRACTIONS", "COARSE_SEGMENTS",
+           "PRIOR_LOG_SD", "REFINE_EVALUATIONS", "_effect_grid", "_lstsq_bounded", "_resid", "with_effect"]

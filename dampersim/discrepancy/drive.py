@@ -97,7 +97,8 @@ def simulate_point(system, point, halves: bool = False) -> dict:
         c = tracking.driven_coefficients(point, res, ex.steady_start, ORDERS)
         out = {"orders": np.abs(c), "coefficients": c}
         if halves:
-            out["halves"] = tracking.half_coefficients(point, tracking.driven_output(point, res, ex.steady_start), ORDERS)
+            model_output = tracking.driven_output(point, res, ex.steady_start)
+            out["halves"] = tracking.half_coefficients(point, model_output, ORDERS)
         return out
     ex = RecordedRamp(point.speed, point.time, point.input_torque)
     res = simulate(system, ex, record_segments=False)

@@ -1,7 +1,7 @@
 """Calibration arithmetic of the diagnosis: the calibration factors and their prior, the
-calibrated and coarse parameter sets, the regularised Gauss-Newton step (on standardised
-residuals, see :mod:`dampersim.discrepancy.likelihood`) and the magnitude grid of an
-effect fit."""
+directions the calibration cannot follow and their uncertainty, the calibrated, moved and
+coarse parameter sets, the regularised Gauss-Newton step (on standardised residuals, see
+:mod:`dampersim.discrepancy.likelihood`) and the magnitude grid of an effect fit."""
 
 from __future__ import annotations
 
@@ -32,11 +32,12 @@ UNCALIBRATED = {
     "pair_friction_split": {"friction.pair_outer.alpha": 1.0, "friction.pair_inner.alpha": -1.0},
     "tertiary_inertia": {"inertias.tertiary": 1.0},
 }
-#: standard uncertainty (log) of each estimated parameter of [thesis] §6.1 on its own: about
-#: +-10 % (a uniform draw of +-10 % has a standard deviation of 5.8 %; the synthetic benchmark
-#: draws its truths' perturbations so). A group factor absorbs the mean of its two parameters'
-#: errors, which leaves their half difference, of standard deviation ESTIMATE_LOG_SD / sqrt(2),
-#: to the split direction (:func:`uncalibrated_systems`)
+#: standard uncertainty (log) of each estimated parameter of [thesis] §6.1 on its own. An
+#: assumption, not a measured figure: the thesis estimates these parameters without stating an
+#: uncertainty; +-10 % is the spread the synthetic benchmark draws its truths' perturbations
+#: from (a uniform +-10 % has a standard deviation of 5.8 %). A group factor absorbs the mean
+#: of its two parameters' errors, which leaves their half difference, of standard deviation
+#: ESTIMATE_LOG_SD / sqrt(2), to the split direction (:func:`uncalibrated_systems`)
 ESTIMATE_LOG_SD = 0.06
 #: relative gain tolerance of the torque channels: only for the displayed noise floor [N m]
 #: (the likelihood fits the channels' gain as a nuisance parameter instead)
@@ -48,13 +49,10 @@ CAL_STEP_FRACTIONS = (1.0, 0.5, 0.25)  # calibration step lengths tried, longest
 #: Gauss-Newton step of an iteration comes from the 5 % secant, and from the 1 % one when no
 #: step length along the first lowers the cost. Near a knee of the characteristic (the stops
 #: sit at fixed angles, the knee's torque moves with the stiffnesses) the orders are so
-#: non-linear in a factor that the 5 % secant alone stopped the calibration of the CI control
-#: campaign (3 % perturbation, random DAQ chain) after one step, with the 1500 and 1800 rpm,
-#: 350 N m points at reduced chi^2 4.6 and 3.3 where the truth's own factors give 0.07 and
-#: 0.02; the 1 % secant alone fitted them but, with the strong absorber hidden, let the
-#: calibration take up part of it (the absorber came back 6 % low with a false transducer low
-#: pass beside it) (``python bench/bench_control_misfit.py --case ci-control --derivative-steps 0.05``,
-#: ``... --case ci-absorber --derivative-steps 0.01``)
+#: non-linear in a factor that the 5 % secant alone stopped the CI control campaign's
+#: calibration well short of the truth's own factors, and the 1 % secant alone let the CI
+#: absorber campaign's calibration take up part of the absorber (docs/discrepancy.md,
+#: Benchmark, "The calibration's reach", with the commands)
 CAL_DERIVATIVE_STEPS = (0.05, 0.01)
 CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gauss-Newton (x0.74 .. x1.35)
 REFINE_EVALUATIONS = 8  # magnitude refinement after the grid: campaign runs per candidate
@@ -139,5 +137,5 @@ def _lstsq_bounded(J, r, x0):
 
 
 __all__ = ["CALIBRATION", "UNCALIBRATED", "ESTIMATE_LOG_SD", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS",
-           "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "COARSE_SEGMENTS", "calibrated_system", "uncalibrated_systems",
-           "coarse_system"]
+           "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "COARSE_SEGMENTS", "calibrated_system",
+           "uncalibrated_systems", "coarse_system"]

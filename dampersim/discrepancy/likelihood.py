@@ -109,10 +109,10 @@ def split_half_sigma(point, orders) -> np.ndarray:
     halves' ratios output/input times the whole record's input coefficient, else half the
     difference of the halves' output coefficients (:func:`tracking.half_coefficients`).
     The diagnosis's default record term (its ``repeatability="split_half"``)."""
-    (i1, i2), (o1, o2) = (tracking.half_coefficients(point, point.input_torque, orders),
-                          tracking.half_coefficients(point, point.output_torque, orders))
-    n = len(point.time) // 2
     read = tracking.record_angle_reader(point, orders)
+    (i1, i2), (o1, o2) = (tracking.half_coefficients(point, point.input_torque, orders, read),
+                          tracking.half_coefficients(point, point.output_torque, orders, read))
+    n = len(point.time) // 2
     a_in = (tracking.point_orders(point, point.input_torque, orders, slice(0, 2 * n)).astype(complex) if read is None
             else read(point.input_torque, slice(0, 2 * n)))
     driven = np.abs(a_in) >= 0.01 * max(float(np.abs(a_in).max()), 1e-12)
@@ -136,13 +136,14 @@ def residual_half_sigma(point, model_halves, orders) -> np.ndarray:
 
 
 def sigma_variances(repeat, model_change, meas, pickup=None, offset_change=None, uncalibrated=None) -> dict:
-    """The terms of :func:`cell_sigma`, each a variance [N m^2] per (point, order) cell:
-    ``repeat`` (the mean of the cell's split-half variance and the per-order median over
-    points), ``model`` (the discretisation change), ``mains`` (``pickup``), ``input`` (the
-    model's change under the input channel's uncertainty, ``offset_change``),
-    ``uncalibrated`` (the model's change along the directions the calibration cannot
-    follow, a standard deviation [N m]) and ``floor`` (SIGMA_FLOOR_SHARE of the largest
-    measured order); absent terms are zeros."""
+    """The terms of :func:`cell_sigma`, each a variance [N m^2] per (point, order) cell, from
+    arguments that are standard deviations [N m]: ``repeat`` (the mean of the cell's
+    repeatability variance, :func:`split_half_sigma` or :func:`residual_half_sigma`, and its
+    per-order median over points), ``model`` (the discretisation change), ``mains``
+    (``pickup``), ``input`` (the model's change under the input channel's uncertainty,
+    ``offset_change``), ``uncalibrated`` (the model's change along the directions the
+    calibration cannot follow) and ``floor`` (SIGMA_FLOOR_SHARE of the largest measured
+    order); absent terms are zeros."""
     repeat = np.asarray(repeat, dtype=float)
     # the square of a complex Gaussian's magnitude is exponential: its median is ln 2 of its mean
     pooled = np.median(repeat ** 2, axis=0, keepdims=True) / math.log(2.0)
@@ -153,7 +154,8 @@ def sigma_variances(repeat, model_change, meas, pickup=None, offset_change=None,
         return np.zeros(repeat.shape) if x is None else np.asarray(x, dtype=float) ** 2
 
     return {"repeat": 0.5 * (repeat ** 2 + pooled), "model": model_change ** 2, "mains": term(pickup),
-            "input": term(offset_change), "uncalibrated": term(uncalibrated), "floor": np.full(repeat.shape, floor ** 2)}
+            "input": term(offset_change), "uncalibrated": term(uncalibrated),
+            "floor": np.full(repeat.shape, floor ** 2)}
 
 
 def cell_sigma(repeat, model_change, meas, pickup=None, offset_change=None, uncalibrated=None) -> np.ndarray:
@@ -306,5 +308,5 @@ class Likelihood:
         return float(np.sum(self.point_chi2(y, rows, nuisance)) / (2 * len(rows) * len(self.orders)))
 
 
-__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma", "residual_half_sigma",
-           "sigma_variances", "cell_sigma", "robust_weights", "Likelihood"]
+__all__ = ["GAIN_PRIOR_SD", "DELAY_PRIOR_SD", "ROBUST_C", "measured_coefficients", "split_half_sigma",
+           "residual_half_sigma", "sigma_variances", "cell_sigma", "robust_weights", "Likelihood"]

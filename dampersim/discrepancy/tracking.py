@@ -72,12 +72,13 @@ def halves(point) -> tuple:
     return slice(0, n), slice(n, 2 * n)
 
 
-def half_coefficients(point, signal, orders) -> np.ndarray:
+def half_coefficients(point, signal, orders, read=None) -> np.ndarray:
     """Order coefficients [N m] of ``signal`` (on the point's time base) over each of the
     record's two :func:`halves`, shape (2, orders): complex, both halves read on the whole
     record's tracked angle (one phase reference); without a speed channel, each half's real
-    amplitudes at the nominal speed."""
-    read = record_angle_reader(point, orders)
+    amplitudes at the nominal speed. ``read``: the point's :func:`record_angle_reader`, when
+    the caller has built it already."""
+    read = read or record_angle_reader(point, orders)
     if read is None:
         return np.array([point_orders(point, signal, orders, part).astype(complex) for part in halves(point)])
     return np.array([read(signal, part) for part in halves(point)])

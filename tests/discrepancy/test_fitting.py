@@ -84,7 +84,7 @@ def test_uncalibrated_directions_move_only_what_the_calibration_cannot_follow():
             f = flat_values(s)
             changed = {n for n in flat if f[n] != flat[n]}
             assert changed == set(direction)
-            for n, w in direction.items():
+            for n, w in direction.items():  # rel 1e-12: exp then log of the same float, to rounding
                 assert math.log(f[n] / flat[n]) == pytest.approx(sign * w * step, rel=1e-12)
             # a split keeps the group's log mean, the level a calibration factor scales
             group = [g for g in CALIBRATION.values() if set(direction) <= set(g)]

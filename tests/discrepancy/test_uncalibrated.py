@@ -15,11 +15,13 @@ from tests.discrepancy.test_input_channel import _campaign, _spy_on_cell_sigma
 EXPONENT = 0.5  # the stand-in's orders follow the tertiary inertia as J_ter^0.5
 
 
-def _tertiary_sensitive_model():
+def _tertiary_sensitive_model(fail_when_moved=None):
     base = F.fake_model()
     j0 = F.BASE.inertias.tertiary
 
     def simulate_point(system, p, halves=False):
+        if p.id == fail_when_moved and system.inertias.tertiary != j0:
+            raise RuntimeError("diverged with the tertiary inertia moved")
         out = base(system, p)
         k = (system.inertias.tertiary / j0) ** EXPONENT
         return {key: k * v for key, v in out.items()}
@@ -43,7 +45,21 @@ def test_the_diagnosis_carries_the_uncalibrated_parameters_into_the_cell_uncerta
     unmoved = np.abs(np.array([F.fake_model()(system, p)["coefficients"] for p in camp.torsional]))
     up, down = math.exp(EXPONENT * ESTIMATE_LOG_SD) - 1.0, math.exp(-EXPONENT * ESTIMATE_LOG_SD) - 1.0
     share = math.sqrt(0.5 * (up ** 2 + down ** 2))
+    # rel 1e-9: the same arithmetic in another order (the stand-in is exact, no simulation)
     assert np.asarray(seen["uncalibrated"]) == pytest.approx(share * unmoved, rel=1e-9)
+
+
+def test_a_point_whose_uncalibrated_check_fails_is_left_out_and_reported(monkeypatch):
+    from dampersim.discrepancy import diagnose as dg
+
+    seen = _spy_on_cell_sigma(monkeypatch, dg)
+    monkeypatch.setattr(drive, "simulate_point", _tertiary_sensitive_model(fail_when_moved="p4"))
+    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
+    assert [(q["point"], q["field"]) for q in d.problems] == [("p4", "model")]
+    message = d.problems[0]["message"]
+    assert "calibration cannot follow" in message and "tertiary inertia" in message and "left out" in message
+    assert "p4" not in {p["id"] for p in d.points} and d.verdict != dg.INSUFFICIENT
+    assert np.asarray(seen["uncalibrated"]).shape == (len(d.points), len(drive.ORDERS))  # the kept points' rows
 
 
 def test_the_diagnosis_takes_the_repeatability_asked_for(monkeypatch):
@@ -62,6 +78,7 @@ def test_the_diagnosis_takes_the_repeatability_asked_for(monkeypatch):
     dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False, repeatability="residual")
     expected = np.array([residual_half_sigma(p, F.fake_model()(system, p)["halves"], drive.ORDERS)
                          for p in camp.torsional])
+    # rel 1e-12: the same function of the same numbers (diagnose's path against a direct call)
     assert np.asarray(seen["repeat"]) == pytest.approx(expected, rel=1e-12)
     assert np.all(expected > 0)  # the records carry noise
     dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
@@ -75,9 +92,11 @@ def test_residual_repeatability_cancels_what_both_halves_share():
     """A gap the same in both halves (a systematic model error) is not repeatability; noise is."""
     p = F.point("q", 1500.0, 200.0)
     clean = tracking.half_coefficients(p, p.output_torque, drive.ORDERS)
+    # abs 1e-12 N m: the same numbers subtracted, zero to rounding
     assert residual_half_sigma(p, clean, drive.ORDERS) == pytest.approx(np.zeros(len(drive.ORDERS)), abs=1e-12)
     biased = clean + 0.7  # the model off by 0.7 N m in every order, alike in both halves
     assert residual_half_sigma(p, biased, drive.ORDERS) == pytest.approx(np.zeros(len(drive.ORDERS)), abs=1e-12)
     one_half = clean.copy()
     one_half[1] += 0.4  # differs between the halves: half of it is the repeatability
+    # rel 1e-9: a difference of coefficients of tens of N m, exact to rounding
     assert residual_half_sigma(p, one_half, drive.ORDERS) == pytest.approx(np.full(len(drive.ORDERS), 0.2), rel=1e-9)
