@@ -66,7 +66,7 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     assert lk["reduced_chi2_held_out"] <= 0.3 * lk["reduced_chi2_held_out_calibrated"]
     # the verdict: with the absorber fitted, this campaign's points at 900 rpm keep a misfit
     # (point reduced chi^2 26 at 350 N m, just above the knee, and 5 at 150 N m,
-    # `python bench/bench_control_misfit.py --case ci-absorber`, commit 341837a; 11 and 7 at
+    # `python bench/bench_control_misfit.py --case ci-absorber`, commit 8a55a67; 11 and 7 at
     # 900 and 1500 rpm, 350 N m, before the term for what the calibration cannot follow; near
     # the knee the model's own segment convergence is slowest, docs/model.md §12), above the
     # noise level, and the verdict can be
@@ -79,8 +79,8 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     # since then every point also runs with its input moved up and down (the input channel's
     # uncertainty) and with the set moved up and down along each of the three directions the
     # calibration cannot follow (fitting.UNCALIBRATED), 8 runs more per point: 750 runs here
-    # and 771 in the control campaign (`python bench/bench_control_misfit.py --case ci-absorber`
-    # and `--case ci-control --daq none`, commit 341837a); neither calibration needed the
+    # (`python bench/bench_control_misfit.py --case ci-absorber`, commit 8a55a67) and 771 in
+    # the control campaign (`--case ci-control --daq none`, commit 341837a); neither calibration needed the
     # second derivative step (fitting.CAL_DERIVATIVE_STEPS), whose runs this bound leaves out
     assert d.simulations <= 700 + (2 + 2 * len(UNCALIBRATED)) * len(POINTS)
 
