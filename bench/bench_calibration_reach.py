@@ -61,15 +61,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--case", choices=("ci-control", "ci-absorber"), default="ci-control")
     ap.add_argument("--daq", default="random", help="none, random, or parts of the random chain")
-    ap.add_argument("--derivative-steps", type=float, nargs="+", default=None,
-                    help="the calibration's finite-difference log steps (fitting.CAL_DERIVATIVE_STEPS)")
+    M.add_derivative_steps(ap)
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
-    bad = [h for h in a.derivative_steps or () if not 0.0 < h < 1.0]
-    if bad:
-        ap.error(f"--derivative-steps {bad[0]}: accepted are log steps between 0 and 1, both excluded")
-    if a.derivative_steps:
-        fitting.CAL_DERIVATIVE_STEPS = tuple(a.derivative_steps)  # read at call time, in this process only
+    M.use_derivative_steps(ap, a.derivative_steps)
     base = at_thesis_segments()
     effects = [("pendulum_absorber", {"inertia": 0.002})] if a.case == "ci-absorber" else []
     with tempfile.TemporaryDirectory() as d:

@@ -73,6 +73,22 @@ def ci_daq(spec: str):
     return dataclasses.replace(full, **{n: None for n in names - keep})
 
 
+def add_derivative_steps(ap) -> None:
+    """The ``--derivative-steps`` option (fitting.CAL_DERIVATIVE_STEPS), shared with
+    bench_calibration_reach.py."""
+    ap.add_argument("--derivative-steps", type=float, nargs="+", default=None,
+                    help="the calibration's finite-difference log steps, tried in turn (fitting.CAL_DERIVATIVE_STEPS)")
+
+
+def use_derivative_steps(ap, steps) -> None:
+    """Check ``--derivative-steps`` and set them for this process (read at call time)."""
+    bad = [h for h in steps or () if not 0.0 < h < 1.0]
+    if bad:
+        ap.error(f"--derivative-steps {bad[0]}: accepted are log steps between 0 and 1, both excluded")
+    if steps:
+        fitting.CAL_DERIVATIVE_STEPS = tuple(steps)
+
+
 def run(label, effects, perturb, seed, points, record, daq, fine, base, diag_kw, workers) -> dict:
     same = synth.truth_system
     synth.truth_system = lambda *a, **k: same(*a, **{**k, "fine": fine})
@@ -101,18 +117,13 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--floor", type=float, default=None,
                     help="the cell uncertainty's floor share (likelihood.SIGMA_FLOOR_SHARE) to diagnose with")
-    ap.add_argument("--derivative-steps", type=float, nargs="+", default=None,
-                    help="the calibration's finite-difference log steps, tried in turn (fitting.CAL_DERIVATIVE_STEPS)")
+    add_derivative_steps(ap)
     ap.add_argument("--estimate-sd", type=float, default=None,
                     help="the uncalibrated parameters' log uncertainty (fitting.ESTIMATE_LOG_SD); 0 drops that term")
     args = ap.parse_args(argv)
-    bad = [h for h in args.derivative_steps or () if not 0.0 < h < 1.0]
-    if bad:
-        ap.error(f"--derivative-steps {bad[0]}: accepted are log steps between 0 and 1, both excluded")
+    use_derivative_steps(ap, args.derivative_steps)
     if args.estimate_sd is not None and not 0.0 <= args.estimate_sd < 1.0:
         ap.error(f"--estimate-sd {args.estimate_sd}: accepted is a log uncertainty from 0 (included) to 1 (excluded)")
-    if args.derivative_steps is not None:
-        fitting.CAL_DERIVATIVE_STEPS = tuple(args.derivative_steps)  # read at call time, in this process only
     if args.estimate_sd is not None:
         fitting.ESTIMATE_LOG_SD = args.estimate_sd
     if args.floor is not None:

@@ -158,18 +158,28 @@ def coefficients_of(runner, system, points, errors: dict | None = None, halves: 
     """Complex output order coefficients [N m] of ``system`` driven by each torsional point
     (at :func:`diagnosis_system`'s step); a failed run gives a row of complex NaN, never
     numbers, and its message goes into ``errors[row]`` when a dict is given. ``halves``, when
-    a dict is given, receives each run's coefficients over the record's two halves (``halves[row]``,
-    shape (2, orders))."""
-    sysd = diagnosis_system(system)
-    out = runner.map([(sysd, p, True) if halves is not None else (sysd, p) for p in points])
-    rows = np.full((len(out), len(ORDERS)), np.nan + 1j * np.nan)
-    for i, r in enumerate(out):
+    a dict is given, receives each run's coefficients over the record's two halves
+    (``halves[row]``, shape (2, orders))."""
+    return coefficients_of_sets(runner, [system], points, None if errors is None else [errors],
+                                None if halves is None else [halves])[0]
+
+
+def coefficients_of_sets(runner, systems, points, errors: list | None = None, halves: list | None = None) -> np.ndarray:
+    """:func:`coefficients_of` of several parameter sets over the same points in one map of
+    the runner (no wait for the pool to drain between the sets): shape (sets, points,
+    orders); ``errors`` and ``halves``, when given, hold one dict per set."""
+    extra = (True,) if halves is not None else ()
+    tasks = [(sysd, p, *extra) for sysd in map(diagnosis_system, systems) for p in points]
+    out = runner.map(tasks)
+    rows = np.full((len(systems), len(points), len(ORDERS)), np.nan + 1j * np.nan)
+    for n, r in enumerate(out):
+        k, i = divmod(n, len(points))
         if "coefficients" in r:
-            rows[i] = r["coefficients"]
+            rows[k, i] = r["coefficients"]
             if halves is not None:
-                halves[i] = r["halves"]
+                halves[k][i] = r["halves"]
         elif errors is not None:
-            errors[i] = r.get("error", "no result")
+            errors[k][i] = r.get("error", "no result")
     return rows
 
 
@@ -196,5 +206,5 @@ def windup_error_deg(sim_windup, point) -> float:
 
 
 __all__ = ["ORDERS", "DRIVE_SETTLE", "RecordedRamp", "rezeroed", "diagnosis_system", "simulate_point",
-           "run_task", "Runner", "coefficients_of", "run_problem", "failed_text",
+           "run_task", "Runner", "coefficients_of", "coefficients_of_sets", "run_problem", "failed_text",
            "windup_error_deg"]
