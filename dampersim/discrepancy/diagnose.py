@@ -154,6 +154,15 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         def coeffs(s, points, errors=None):
             return drive.coefficients_of(runner, s, points, errors)
 
+        def _sensitivities(dy, h, x, y):
+            """d coefficients / d log factor at x from steps h (into dy), standardised per column.
+            A failed derivative run gives no direction (0), never a fit."""
+            for k in range(len(x)):
+                xk = x.copy()
+                xk[k] += h
+                dy[k] = np.nan_to_num((coeffs(calibrated_system(system, xk), ptr) - y) / h, nan=0.0)
+            return np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
+
         # 2) calibrate (Gauss-Newton on log scale factors, training points only), from the
         # best point of a coarse scan of each factor alone: near a resonance the order
         # response is so non-linear in a stiffness that Gauss-Newton from the estimate can
@@ -171,37 +180,35 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 if ck < best[0]:
                     best = (ck, xk, yk)
         _, x, y_tr = best
-        # d coefficients / d log factor, per derivative step; the first step's last one is the
-        # calibration's sensitivity handed on to the naming (as before the second step was added)
+        # d coefficients / d log factor, per derivative step (the longer step's is handed on to the naming)
         dys = {h: np.zeros((len(x),) + y_tr.shape, dtype=complex) for h in fitting.CAL_DERIVATIVE_STEPS}
+        first = 0  # the derivative step an iteration starts with (fitting.CAL_DERIVATIVE_STEPS)
         for it in range(calibration_iterations):
             report(0.08 + 0.25 * it / calibration_iterations, f"calibrate: iteration {it + 1} of {calibration_iterations}")
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
             c_now, moved = cost(y_tr, x), False
             # the sensitivities from the longer step first; when no step length lowers the cost
-            # along its direction, from the shorter one (fitting.CAL_DERIVATIVE_STEPS)
-            for h in fitting.CAL_DERIVATIVE_STEPS:
-                dy = dys[h]
-                for k in range(len(x)):
-                    xk = x.copy()
-                    xk[k] += h
-                    # a failed derivative run gives no direction (0), never a fit
-                    dy[k] = np.nan_to_num((coeffs(calibrated_system(system, xk), ptr) - y_tr) / h, nan=0.0)
-                jac = np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
+            # along its direction, from the shorter one, which the later iterations then start with
+            for j, h in enumerate(fitting.CAL_DERIVATIVE_STEPS[first:], start=first):
+                jac = _sensitivities(dys[h], h, x, y_tr)
                 dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
                 for frac in CAL_STEP_FRACTIONS:
                     xn = x + frac * dx
                     yn = coeffs(calibrated_system(system, xn), ptr)
                     if cost(yn, xn) < c_now:
-                        x, y_tr, moved = xn, yn, True
+                        x, y_tr, moved, first = xn, yn, True, j
                         break
                 if moved:
                     break
             if not moved:
                 break
         lik.fit_nuisance(y_tr, train)  # the calibrated model's nuisance and robust weights
-        dy = dys[fitting.CAL_DERIVATIVE_STEPS[0]]
-        jac = np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
+        # the naming's sensitivities are the longer step's: from the last iteration that took them
+        # (as before the shorter step was added), or taken again at the calibrated factors when the
+        # iterations had gone on with the shorter step
+        h = fitting.CAL_DERIVATIVE_STEPS[0]
+        jac = (_sensitivities(dys[h], h, x, y_tr) if first > 0
+               else np.column_stack([lik.vec(dys[h][k], train) for k in range(len(x))]))
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
         err_cal = {}

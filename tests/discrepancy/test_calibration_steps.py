@@ -1,0 +1,76 @@
+"""The calibration's two derivative steps (fitting.CAL_DERIVATIVE_STEPS): when no step length
+along the longer step's Gauss-Newton direction lowers the cost, the iteration retries with
+the shorter step; once that has moved the factors, the later iterations start with it; the
+naming then gets the longer step's sensitivities taken again at the calibrated factors
+(stand-in model, no simulation)."""
+
+import numpy as np
+
+from dampersim.discrepancy import drive, fitting
+from tests.discrepancy import fake_rig as F
+from tests.discrepancy.test_input_channel import _campaign
+
+LONG, SHORT = fitting.CAL_DERIVATIVE_STEPS
+N = len(fitting.CALIBRATION)
+
+
+def _step_of(runs, x0):
+    """LONG or SHORT if ``runs`` are x0 offset by it in each factor in turn, else None (to 1e-12:
+    x0 + h - x0 rounds h)."""
+    d = np.array(runs) - x0
+    return next((h for h in (LONG, SHORT) if np.allclose(d, h * np.eye(N), rtol=0.0, atol=1e-12)), None)
+
+
+def _diagnose(monkeypatch, turn_first_uphill):
+    """Diagnose the stand-in campaign, recording every factor vector the calibration runs and,
+    per Gauss-Newton solve, (runs so far, the factors it starts from)."""
+    from dampersim.discrepancy import diagnose as dg
+
+    xs, solves = [], []
+    real_cs, real_solve = dg.calibrated_system, dg._lstsq_bounded
+
+    def spy_cs(system, x):
+        xs.append(np.array(x, dtype=float))
+        return real_cs(system, x)
+
+    def spy_solve(J, r, x0):
+        solves.append((len(xs), np.array(x0, dtype=float)))
+        dx = real_solve(J, r, x0)
+        # turned uphill, no step length along the first direction lowers the cost
+        return -dx if turn_first_uphill and len(solves) == 1 else dx
+
+    monkeypatch.setattr(dg, "calibrated_system", spy_cs)
+    monkeypatch.setattr(dg, "_lstsq_bounded", spy_solve)
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model())
+    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False, calibration_iterations=3)
+    # the derivative step of each solve: the N runs just before it
+    steps = [_step_of(xs[k - N:k], x0) for k, x0 in solves]
+    return d, xs, solves, steps
+
+
+def test_a_failed_long_step_retries_short_and_later_iterations_keep_it(monkeypatch):
+    d, xs, solves, steps = _diagnose(monkeypatch, turn_first_uphill=True)
+    assert d.verdict != "insufficient_data"
+    # iteration 1: the long step, its direction fails, the retry with the short one moves the
+    # factors; iterations 2 and 3 start (and here end) with the short step
+    assert steps == [LONG, SHORT, SHORT, SHORT]
+    np.testing.assert_array_equal(solves[1][1], solves[0][1])  # the retry starts where the first solve did
+    # after the last solve's trials: the long step's sensitivities at the factors the last
+    # accepted trial reached (the calibrated ones), for the naming
+    start = solves[-1][0]
+    trials = []
+    for i in range(start, len(xs) - N + 1):
+        found = [t for t in trials if _step_of(xs[i:i + N], t) == LONG]
+        if found:
+            break
+        trials.append(xs[i])
+    assert found, "the long step's sensitivities were not taken again after the short ones"
+    assert not np.array_equal(found[0], solves[-1][1])  # at the moved factors, not where the last solve began
+
+
+def test_without_a_retry_the_long_step_is_used_throughout(monkeypatch):
+    d, xs, solves, steps = _diagnose(monkeypatch, turn_first_uphill=False)
+    assert steps and set(steps) == {LONG}
+    # no second taking of the sensitivities: the naming gets the last iteration's
+    start = solves[-1][0]
+    assert not any(_step_of(xs[i:i + N], xs[j]) == LONG for i in range(start, len(xs) - N + 1) for j in range(start, i))
