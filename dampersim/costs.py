@@ -276,9 +276,9 @@ DIAGNOSIS_COMPARE_RUNS = 4 + 2 * 3  # per point: as given, coarse, input moved u
 DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
 DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
 DIAGNOSIS_DERIVATIVE_STEPS = 2  # sensitivity steps an iteration may try in turn (fitting.CAL_DERIVATIVE_STEPS)
-# (the second is tried at most once before it becomes the first of the later iterations, and the
-# naming's 5 % sensitivities taken again after it fit within the iterations that then skip the
-# 5 % step: iterations + 2 sensitivity sets at most, under 2 x iterations for 2 or more)
+# (the naming's 5 % sensitivities are taken again after the iterations only when one of them
+# moved the factors with the 1 % step alone, leaving one of its two sets untaken: never more
+# than two sets per iteration in all)
 DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)
 DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
 DIAGNOSIS_FIT_RUNS = 5 + 8 + 3 + 1  # magnitude grid + bounded refinement + verification + derivative runs

@@ -183,14 +183,19 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # d coefficients / d log factor, per derivative step (the longer step's is handed on to the naming)
         dys = {h: np.zeros((len(x),) + y_tr.shape, dtype=complex) for h in fitting.CAL_DERIVATIVE_STEPS}
         first = 0  # the derivative step an iteration starts with (fitting.CAL_DERIVATIVE_STEPS)
+        long_at = x  # the factors the longer step's sensitivities were last taken at
         for it in range(calibration_iterations):
             report(0.08 + 0.25 * it / calibration_iterations, f"calibrate: iteration {it + 1} of {calibration_iterations}")
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
             c_now, moved = cost(y_tr, x), False
             # the sensitivities from the longer step first; when no step length lowers the cost
-            # along its direction, from the shorter one, which the later iterations then start with
-            for j, h in enumerate(fitting.CAL_DERIVATIVE_STEPS[first:], start=first):
+            # along its direction, from the shorter one. The step that last moved the factors
+            # starts the next iteration, the other one is its fallback
+            steps = fitting.CAL_DERIVATIVE_STEPS
+            for j in [first] + [i for i in range(len(steps)) if i != first]:
+                h = steps[j]
                 jac = _sensitivities(dys[h], h, x, y_tr)
+                long_at = x if j == 0 else long_at
                 dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
                 for frac in CAL_STEP_FRACTIONS:
                     xn = x + frac * dx
@@ -205,9 +210,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         lik.fit_nuisance(y_tr, train)  # the calibrated model's nuisance and robust weights
         # the naming's sensitivities are the longer step's: from the last iteration that took them
         # (as before the shorter step was added), or taken again at the calibrated factors when the
-        # iterations had gone on with the shorter step
+        # iterations had gone on with the shorter step and moved the factors since
         h = fitting.CAL_DERIVATIVE_STEPS[0]
-        jac = (_sensitivities(dys[h], h, x, y_tr) if first > 0
+        jac = (_sensitivities(dys[h], h, x, y_tr) if first > 0 and long_at is not x
                else np.column_stack([lik.vec(dys[h][k], train) for k in range(len(x))]))
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")

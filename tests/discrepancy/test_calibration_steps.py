@@ -21,9 +21,11 @@ def _step_of(runs, x0):
     return next((h for h in (LONG, SHORT) if np.allclose(d, h * np.eye(N), rtol=0.0, atol=1e-12)), None)
 
 
-def _diagnose(monkeypatch, turn_first_uphill):
+def _diagnose(monkeypatch, uphill=()):
     """Diagnose the stand-in campaign, recording every factor vector the calibration runs and,
-    per Gauss-Newton solve, (runs so far, the factors it starts from)."""
+    per Gauss-Newton solve, (runs so far, the factors it starts from). The solves numbered in
+    ``uphill`` (from 1) return their direction turned uphill, along which no step length
+    lowers the cost."""
     from dampersim.discrepancy import diagnose as dg
 
     xs, solves = [], []
@@ -36,8 +38,7 @@ def _diagnose(monkeypatch, turn_first_uphill):
     def spy_solve(J, r, x0):
         solves.append((len(xs), np.array(x0, dtype=float)))
         dx = real_solve(J, r, x0)
-        # turned uphill, no step length along the first direction lowers the cost
-        return -dx if turn_first_uphill and len(solves) == 1 else dx
+        return -dx if len(solves) in uphill else dx
 
     monkeypatch.setattr(dg, "calibrated_system", spy_cs)
     monkeypatch.setattr(dg, "_lstsq_bounded", spy_solve)
@@ -49,7 +50,7 @@ def _diagnose(monkeypatch, turn_first_uphill):
 
 
 def test_a_failed_long_step_retries_short_and_later_iterations_keep_it(monkeypatch):
-    d, xs, solves, steps = _diagnose(monkeypatch, turn_first_uphill=True)
+    d, xs, solves, steps = _diagnose(monkeypatch, uphill={1})
     assert d.verdict != "insufficient_data"
     # iteration 1: the long step, its direction fails, the retry with the short one moves the
     # factors; iterations 2 and 3 start (and here end) with the short step
@@ -68,8 +69,16 @@ def test_a_failed_long_step_retries_short_and_later_iterations_keep_it(monkeypat
     assert not np.array_equal(found[0], solves[-1][1])  # at the moved factors, not where the last solve began
 
 
+def test_when_the_short_step_fails_later_the_long_one_is_its_fallback(monkeypatch):
+    _d, _xs, solves, steps = _diagnose(monkeypatch, uphill={1, 3})
+    # iteration 1: long fails, short moves; iteration 2: short fails, long moves (the same
+    # factors for both solves of an iteration); iteration 3 starts with the long step again
+    assert steps == [LONG, SHORT, SHORT, LONG, LONG]
+    np.testing.assert_array_equal(solves[3][1], solves[2][1])
+
+
 def test_without_a_retry_the_long_step_is_used_throughout(monkeypatch):
-    d, xs, solves, steps = _diagnose(monkeypatch, turn_first_uphill=False)
+    d, xs, solves, steps = _diagnose(monkeypatch)
     assert steps and set(steps) == {LONG}
     # no second taking of the sensitivities: the naming gets the last iteration's
     start = solves[-1][0]
