@@ -64,7 +64,8 @@ def main(argv=None):
     ap.add_argument("--daq", default="random", help="none, random, or parts of the random chain")
     M.add_derivative_steps(ap)
     ap.add_argument("--iterations", type=int, default=3,
-                    help="Gauss-Newton iterations of the calibration (3, as the strict CI tests; the diagnosis's default is 6)")
+                    help="Gauss-Newton iterations of the calibration (3, as the strict CI tests; the diagnosis's "
+                         "default is 6)")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     if not 1 <= a.iterations <= 50:
@@ -94,7 +95,8 @@ def main(argv=None):
 
     dg.Likelihood, dg.cell_sigma, dg.Namer = keep, keep_sigma, keep_namer
     try:
-        res = dg.diagnose(camp, base, workers=a.workers, candidates=M.CI_CANDIDATES, calibration_iterations=a.iterations,
+        res = dg.diagnose(camp, base, workers=a.workers, candidates=M.CI_CANDIDATES,
+                          calibration_iterations=a.iterations,
                           shortlist=2, recommend=False).to_json()
     finally:
         dg.Likelihood, dg.cell_sigma, dg.Namer = real, real_sigma, real_namer
@@ -106,7 +108,8 @@ def main(argv=None):
     train = [i for i in every if i % 3 != 1]
     x_cal = np.asarray(starts[0]["calibrated"][1], dtype=float)
     x_proj = projected_factors(base, applied)
-    row = {"case": a.case, "daq": a.daq, "derivative_steps": list(fitting.CAL_DERIVATIVE_STEPS), "iterations": a.iterations,
+    row = {"case": a.case, "daq": a.daq, "derivative_steps": list(fitting.CAL_DERIVATIVE_STEPS),
+           "iterations": a.iterations,
            "simulations": res["simulations"],
            "verdict": res["verdict"], "reduced_chi2_held_out": res["likelihood"]["reduced_chi2_held_out"]}
     truth, _ = synth.truth_system(base, effects, 0.0, None, applied, fine=False)

@@ -36,6 +36,7 @@ and the acquisition chain between truth and model).
     python bench/bench_repeatability.py
     python bench/bench_repeatability.py --campaigns ci-control --diagnose
     python bench/bench_repeatability.py --campaigns --diagnose --perturb 0
+    python bench/bench_repeatability.py --campaigns --diagnose --iterations 6
 """
 
 from __future__ import annotations
@@ -105,12 +106,12 @@ def noise_check(name: str, workers: int) -> dict:
             **{f"rms_{k}_estimate_by_order_nm": rms(v ** 2) for k, v in est.items()}}
 
 
-def diagnose_control(daq: str, workers: int, perturb: float) -> list:
+def diagnose_control(daq: str, workers: int, perturb: float, iterations: int = 3) -> list:
     rows = []
     for est, term in (("measured", "split_half"), ("residual", "residual")):
-        rows.append(M.run(f"ci-control daq={daq} perturb={perturb:g} repeatability={est}", [], perturb, M.CI_SEED,
-                          M.CI_POINTS, 0.8, M.ci_daq(daq), True, at_thesis_segments(),
-                          {"candidates": M.CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2,
+        rows.append(M.run(f"ci-control daq={daq} perturb={perturb:g} repeatability={est} iterations={iterations}", [],
+                          perturb, M.CI_SEED, M.CI_POINTS, 0.8, M.ci_daq(daq), True, at_thesis_segments(),
+                          {"candidates": M.CI_CANDIDATES, "calibration_iterations": iterations, "shortlist": 2,
                            "repeatability": term}, workers))
     return rows
 
@@ -122,14 +123,19 @@ def main(argv=None):
     ap.add_argument("--daq", default="random", help="--diagnose: none, random, or parts of the random chain")
     ap.add_argument("--perturb", type=float, default=0.03,
                     help="--diagnose: the truth's relative perturbation of the estimated parameters (CI test: 0.03)")
+    ap.add_argument("--iterations", type=int, default=3,
+                    help="--diagnose: Gauss-Newton iterations of the calibration "
+                         "(3, as the strict CI tests; the diagnosis's default is 6)")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
+    if not 1 <= args.iterations <= 50:
+        ap.error(f"--iterations {args.iterations}: accepted is a whole number from 1 to 50")
     for name in args.campaigns:
         print(json.dumps(noise_check(name, args.workers)), flush=True)
     if args.diagnose:
         if not 0.0 <= args.perturb < 1.0:
             ap.error(f"--perturb {args.perturb}: accepted is a share from 0 (included) to 1 (excluded)")
-        for row in diagnose_control(args.daq, args.workers, args.perturb):
+        for row in diagnose_control(args.daq, args.workers, args.perturb, args.iterations):
             print(json.dumps(row), flush=True)
 
 
