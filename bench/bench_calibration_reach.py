@@ -63,13 +63,10 @@ def main(argv=None):
     ap.add_argument("--case", choices=("ci-control", "ci-absorber"), default="ci-control")
     ap.add_argument("--daq", default="random", help="none, random, or parts of the random chain")
     M.add_derivative_steps(ap)
-    ap.add_argument("--iterations", type=int, default=3,
-                    help="Gauss-Newton iterations of the calibration (3, as the strict CI tests; the diagnosis's "
-                         "default is 6)")
+    M.add_iterations(ap)
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
-    if not 1 <= a.iterations <= 50:
-        ap.error(f"--iterations {a.iterations}: accepted is a whole number from 1 to 50")
+    M.check_iterations(ap, a.iterations)
     M.use_derivative_steps(ap, a.derivative_steps)
     base = at_thesis_segments()
     effects = [("pendulum_absorber", {"inertia": 0.002})] if a.case == "ci-absorber" else []

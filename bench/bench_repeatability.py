@@ -123,13 +123,10 @@ def main(argv=None):
     ap.add_argument("--daq", default="random", help="--diagnose: none, random, or parts of the random chain")
     ap.add_argument("--perturb", type=float, default=0.03,
                     help="--diagnose: the truth's relative perturbation of the estimated parameters (CI test: 0.03)")
-    ap.add_argument("--iterations", type=int, default=3,
-                    help="--diagnose: Gauss-Newton iterations of the calibration "
-                         "(3, as the strict CI tests; the diagnosis's default is 6)")
+    M.add_iterations(ap, "--diagnose: ")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
-    if not 1 <= args.iterations <= 50:
-        ap.error(f"--iterations {args.iterations}: accepted is a whole number from 1 to 50")
+    M.check_iterations(ap, args.iterations)
     for name in args.campaigns:
         print(json.dumps(noise_check(name, args.workers)), flush=True)
     if args.diagnose:

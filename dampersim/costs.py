@@ -276,7 +276,7 @@ DIAGNOSIS_COMPARE_RUNS = 4 + 2 * 3  # per point: as given, coarse, input moved u
 DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
 DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
 DIAGNOSIS_DERIVATIVE_STEPS = 2  # sensitivity steps an iteration may try in turn (fitting.CAL_DERIVATIVE_STEPS)
-# (the naming's 5 % sensitivities are taken again after the iterations only when one of them
+# (the naming's 5 % sensitivities are taken again after the iterations only when the last one
 # moved the factors with the 1 % step alone, leaving one of its two sets untaken: never more
 # than two sets per iteration in all)
 DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)

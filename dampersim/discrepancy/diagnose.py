@@ -161,7 +161,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 xk = x.copy()
                 xk[k] += h
                 dy[k] = np.nan_to_num((coeffs(calibrated_system(system, xk), ptr) - y) / h, nan=0.0)
-            return np.column_stack([lik.vec(dy[k], train) for k in range(len(x))])
+            return columns(dy)
+
+        def columns(dy):
+            return np.column_stack([lik.vec(dy[k], train) for k in range(len(dy))])
 
         # 2) calibrate (Gauss-Newton on log scale factors, training points only), from the
         # best point of a coarse scan of each factor alone: near a resonance the order
@@ -181,21 +184,22 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     best = (ck, xk, yk)
         _, x, y_tr = best
         # d coefficients / d log factor, per derivative step (the longer step's is handed on to the naming)
-        dys = {h: np.zeros((len(x),) + y_tr.shape, dtype=complex) for h in fitting.CAL_DERIVATIVE_STEPS}
-        first = 0  # the derivative step an iteration starts with (fitting.CAL_DERIVATIVE_STEPS)
-        long_at = x  # the factors the longer step's sensitivities were last taken at
+        steps = fitting.CAL_DERIVATIVE_STEPS
+        dys = {h: np.zeros((len(x),) + y_tr.shape, dtype=complex) for h in steps}
+        first = 0  # the derivative step an iteration starts with: the one that last moved the factors
+        fresh = True  # the last iteration took the longer step's sensitivities (at its start)
         for it in range(calibration_iterations):
             report(0.08 + 0.25 * it / calibration_iterations, f"calibrate: iteration {it + 1} of {calibration_iterations}")
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
             c_now, moved = cost(y_tr, x), False
-            # the sensitivities from the longer step first; when no step length lowers the cost
-            # along its direction, from the shorter one. The step that last moved the factors
-            # starts the next iteration, the other one is its fallback
-            steps = fitting.CAL_DERIVATIVE_STEPS
+            # the sensitivities from the step that last moved the factors (the longer one at first);
+            # when no step length lowers the cost along its direction, from the other one
+            fresh = False
             for j in [first] + [i for i in range(len(steps)) if i != first]:
                 h = steps[j]
                 jac = _sensitivities(dys[h], h, x, y_tr)
-                long_at = x if j == 0 else long_at
+                if j == 0:
+                    fresh = True
                 dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
                 for frac in CAL_STEP_FRACTIONS:
                     xn = x + frac * dx
@@ -208,12 +212,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             if not moved:
                 break
         lik.fit_nuisance(y_tr, train)  # the calibrated model's nuisance and robust weights
-        # the naming's sensitivities are the longer step's: from the last iteration that took them
-        # (as before the shorter step was added), or taken again at the calibrated factors when the
-        # iterations had gone on with the shorter step and moved the factors since
-        h = fitting.CAL_DERIVATIVE_STEPS[0]
-        jac = (_sensitivities(dys[h], h, x, y_tr) if first > 0 and long_at is not x
-               else np.column_stack([lik.vec(dys[h][k], train) for k in range(len(x))]))
+        # the naming's sensitivities are the longer step's: the last iteration's (taken at its start,
+        # as before the shorter step was added), or taken again at the calibrated factors when the
+        # last iteration moved them with the shorter step alone (then at most two sets per
+        # iteration in all, as costs.diagnosis_runs counts)
+        jac = columns(dys[steps[0]]) if fresh else _sensitivities(dys[steps[0]], steps[0], x, y_tr)
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
         err_cal = {}

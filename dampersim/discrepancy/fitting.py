@@ -47,14 +47,14 @@ PRIOR_LOG_SD = 0.2  # prior spread of the estimated parameters (log factor, ~20 
 CAL_STEP_FRACTIONS = (1.0, 0.5, 0.25)  # calibration step lengths tried, longest first
 #: log steps of the calibration factors' finite-difference sensitivities, tried in turn: the
 #: Gauss-Newton step of an iteration comes from the 5 % secant, and from the 1 % one when no
-#: step length along the first lowers the cost; once the 1 % secant has moved the factors,
-#: the later iterations start with it (the 5 % one is then their fallback). Near a knee of
+#: step length along the first lowers the cost; each later iteration starts with the secant
+#: that last moved the factors, the other one is its fallback. Near a knee of
 #: the characteristic (the stops sit at fixed angles, the knee's torque moves with the
 #: stiffnesses) the orders are so non-linear in a factor that the 5 % secant alone left the
 #: CI control campaign's calibration well short of the truth's own factors, and the 1 %
 #: secant from the start let the CI absorber campaign's calibration take up part of the
 #: absorber (docs/discrepancy.md, Benchmark, "The calibration's reach", with the commands).
-#: The naming always gets 5 % sensitivities.
+#: The naming always gets 5 % sensitivities (diagnose, after the iterations).
 CAL_DERIVATIVE_STEPS = (0.05, 0.01)
 CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gauss-Newton (x0.74 .. x1.35)
 REFINE_EVALUATIONS = 8  # magnitude refinement after the grid: campaign runs per candidate

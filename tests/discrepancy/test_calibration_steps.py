@@ -1,10 +1,13 @@
 """The calibration's two derivative steps (fitting.CAL_DERIVATIVE_STEPS): when no step length
 along the longer step's Gauss-Newton direction lowers the cost, the iteration retries with
-the shorter step; once that has moved the factors, the later iterations start with it; the
-naming then gets the longer step's sensitivities taken again at the calibrated factors
-(stand-in model, no simulation)."""
+the shorter step; each later iteration starts with the step that last moved the factors and
+falls back on the other; the naming gets the longer step's sensitivities, taken again at the
+calibrated factors only when the last iteration moved them with the shorter step alone, so
+that no diagnosis takes more than two sets per iteration (costs.diagnosis_runs) (stand-in
+model, no simulation)."""
 
 import numpy as np
+import pytest
 
 from dampersim.discrepancy import drive, fitting
 from tests.discrepancy import fake_rig as F
@@ -21,7 +24,7 @@ def _step_of(runs, x0):
     return next((h for h in (LONG, SHORT) if np.allclose(d, h * np.eye(N), rtol=0.0, atol=1e-12)), None)
 
 
-def _diagnose(monkeypatch, uphill=()):
+def _diagnose(monkeypatch, uphill=(), iterations=3):
     """Diagnose the stand-in campaign, recording every factor vector the calibration runs and,
     per Gauss-Newton solve, (runs so far, the factors it starts from). The solves numbered in
     ``uphill`` (from 1) return their direction turned uphill, along which no step length
@@ -43,7 +46,8 @@ def _diagnose(monkeypatch, uphill=()):
     monkeypatch.setattr(dg, "calibrated_system", spy_cs)
     monkeypatch.setattr(dg, "_lstsq_bounded", spy_solve)
     monkeypatch.setattr(drive, "simulate_point", F.fake_model())
-    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False, calibration_iterations=3)
+    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False,
+                    calibration_iterations=iterations)
     # the derivative step of each solve: the N runs just before it
     steps = [_step_of(xs[k - N:k], x0) for k, x0 in solves]
     return d, xs, solves, steps
@@ -67,6 +71,7 @@ def test_a_failed_long_step_retries_short_and_later_iterations_keep_it(monkeypat
         trials.append(xs[i])
     assert found, "the long step's sensitivities were not taken again after the short ones"
     assert not np.array_equal(found[0], solves[-1][1])  # at the moved factors, not where the last solve began
+    assert len(steps) + 1 <= 2 * 3  # with it, still the sets costs.diagnosis_runs counts
 
 
 def test_when_the_short_step_fails_later_the_long_one_is_its_fallback(monkeypatch):
@@ -77,9 +82,28 @@ def test_when_the_short_step_fails_later_the_long_one_is_its_fallback(monkeypatc
     np.testing.assert_array_equal(solves[3][1], solves[2][1])
 
 
+def _retaken(xs, solves) -> bool:
+    """Whether the long step's sensitivities were taken after the last solve, around any factor
+    vector run after it."""
+    start = solves[-1][0]
+    return any(_step_of(xs[i:i + N], xs[j]) == LONG for i in range(start, len(xs) - N + 1) for j in range(start, i))
+
+
+@pytest.mark.parametrize("uphill,iterations,expect", [
+    ({1, 3, 4}, 3, [LONG, SHORT, SHORT, LONG]),  # iteration 2: both fail, the calibration stops
+    ({1}, 1, [LONG, SHORT]),  # one iteration that took both sets
+    ({1, 3, 5}, 3, [LONG, SHORT, SHORT, LONG, LONG, SHORT]),  # the last iteration took both sets
+])
+def test_the_long_sensitivities_are_not_taken_again_when_the_last_iteration_took_them(monkeypatch, uphill,
+                                                                                       iterations, expect):
+    _d, xs, solves, steps = _diagnose(monkeypatch, uphill=uphill, iterations=iterations)
+    assert steps == expect
+    assert not _retaken(xs, solves)
+    assert len(steps) <= 2 * iterations  # the sets costs.diagnosis_runs counts
+
+
 def test_without_a_retry_the_long_step_is_used_throughout(monkeypatch):
     d, xs, solves, steps = _diagnose(monkeypatch)
     assert steps and set(steps) == {LONG}
     # no second taking of the sensitivities: the naming gets the last iteration's
-    start = solves[-1][0]
-    assert not any(_step_of(xs[i:i + N], xs[j]) == LONG for i in range(start, len(xs) - N + 1) for j in range(start, i))
+    assert not _retaken(xs, solves)

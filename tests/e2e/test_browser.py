@@ -280,12 +280,15 @@ def test_cancelled_sweep_and_two_tabs(server, browser):
         # the finished points of the cancelled sweep stayed in the cache
         a.goto(long_url)
         wait_text(a, "#colourmap-status", r"Starting the sweep: 77 test points, [1-9]\d* already in the cache")
-        # ... and the resumed sweep can be cancelled in turn (it may already have finished
-        # the rest: either end frees the run button, and tab B above saw a sweep through to
-        # its figure)
-        a.evaluate("() => { const b = document.querySelector('#colourmap-cancel');"
-                   " if (b && !b.disabled && b.offsetParent !== null) b.click(); }")
-        wait_text(a, "#colourmap-status", "Cancelled|Done")
+        # ... and the resumed sweep can be cancelled in turn: once its job runs (the Cancel
+        # button shows) or, if it computed the rest first, once it is done; either end frees
+        # the run button (tab B above saw a sweep through to its figure)
+        running = ("() => { const b = document.querySelector('#colourmap-cancel');"
+                   " return !!b && !b.disabled && b.offsetParent !== null; }")
+        a.wait_for_function(f"() => ({running})() || /Done/.test(document.querySelector('#colourmap-status').innerText)",
+                            timeout=120_000)
+        a.evaluate(f"() => {{ if (({running})()) document.querySelector('#colourmap-cancel').click(); }}")
+        wait_text(a, "#colourmap-status", "Cancelled|Done", timeout=120_000)
         a.wait_for_function("() => !document.querySelector('#colourmap-run').disabled")
     finally:
         context.close()

@@ -33,11 +33,11 @@ def test_negative_hardstops_hold_on_a_negative_ramp():
 
 def test_coil_stacking_without_hardstops_keeps_block_length():
     system = with_updates(P, {"hardstops.enabled": False})
-    # 0.5 s: the 0.3 s ramps, then ten cycles of the 2nd order (50 Hz) coil-bound; the
-    # natural 2.6 s takes ten times as long and gave the same smallest segment (0.99925 of
-    # its block arc)
+    # 0.8 s: the mean and amplitude ramps (0.3 s each), then ten cycles of the 2nd order
+    # (50 Hz) at full amplitude; the natural 2.6 s takes four times as long and gave the same
+    # smallest segment (0.99925 of its block arc)
     res = simulate(system, OrderSum(speed=rpm_to_rad_s(1500), mean_torque=450.0, orders=((2, 150.0, 0.0),)),
-                   duration=0.5)
+                   duration=0.8)
     assert res.energy["stacking"][-1] > 0  # the outer springs did go coil-bound
     for k, sp in enumerate(res.springs):
         seg = np.diff(res.spring_nodes(sp.name), axis=1)

@@ -17,6 +17,7 @@ import time
 import pytest
 
 from dampersim.cli import main
+from dampersim.parameters import at_thesis_segments
 from dampersim.studies import STUDIES, run_study, study_cost, study_plan, table_7_1
 
 
@@ -67,6 +68,19 @@ def test_study_runs_as_planned_and_is_json(name, results, counter):
     print(f"{name}: {plan.simulations()} simulations planned, {len(counter.calls)} run; "
           f"{cost.work:.3e} step·DOF estimated, {counter.work:.3e} run; ~{cost.seconds():.1f} s of one core "
           f"estimated, {wall:.1f} s wall (serial, including the analysis)")
+
+
+def test_plan_follows_another_parameter_set(counter):
+    # the thesis's 18/8 segments on the cheapest study: the plan counts the set it is given
+    # (steps x DOF change with the segment counts), not the default one
+    system = at_thesis_segments()
+    plan = study_plan("order-rule", quick=True, system=system)
+    cost = study_cost("order-rule", quick=True, system=system)
+    run_study("order-rule", system, quick=True, executor="serial")
+    assert len(counter.calls) == plan.simulations()
+    # exact up to the rounding of a float sum of a few products below 1e8 (see above)
+    assert cost.work == pytest.approx(counter.work, rel=1e-12)
+    assert cost.work != pytest.approx(study_cost("order-rule", quick=True).work, rel=1e-3)
 
 
 def test_second_run_comes_from_cache(cache_dir):
