@@ -193,8 +193,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
             c_now, moved = cost(y_tr, x), False
             # the sensitivities from the step that last moved the factors (the longer one at first);
-            # when no step length lowers the cost along its direction, from the other one
-            fresh = False
+            fresh = False  # when no step length lowers the cost along its direction, from the other one
             for j in [first] + [i for i in range(len(steps)) if i != first]:
                 h = steps[j]
                 jac = _sensitivities(dys[h], h, x, y_tr)
@@ -212,10 +211,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             if not moved:
                 break
         lik.fit_nuisance(y_tr, train)  # the calibrated model's nuisance and robust weights
-        # the naming's sensitivities are the longer step's: the last iteration's (taken at its start,
-        # as before the shorter step was added), or taken again at the calibrated factors when the
-        # last iteration moved them with the shorter step alone (then at most two sets per
-        # iteration in all, as costs.diagnosis_runs counts)
+        # the naming's sensitivities are the longer step's: the last iteration's (taken at its start), or
+        # taken again at the calibrated factors when the last iteration moved them with the shorter
+        # step alone (so at most two sets per iteration in all, as costs.diagnosis_runs counts)
         jac = columns(dys[steps[0]]) if fresh else _sensitivities(dys[steps[0]], steps[0], x, y_tr)
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
