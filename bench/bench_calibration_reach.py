@@ -66,7 +66,6 @@ def main(argv=None):
     M.add_iterations(ap)
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
-    M.check_iterations(ap, a.iterations)
     M.use_derivative_steps(ap, a.derivative_steps)
     base = at_thesis_segments()
     effects = [("pendulum_absorber", {"inertia": 0.002})] if a.case == "ci-absorber" else []

@@ -89,17 +89,19 @@ def use_derivative_steps(ap, steps) -> None:
         fitting.CAL_DERIVATIVE_STEPS = tuple(steps)
 
 
+def _iterations(text: str) -> int:
+    n = int(text)
+    if not 1 <= n <= 50:
+        raise argparse.ArgumentTypeError(f"{n}: accepted is a whole number from 1 to 50")
+    return n
+
+
 def add_iterations(ap, prefix: str = "") -> None:
-    """The ``--iterations`` option of the calibration (shared with bench_calibration_reach.py
-    and bench_repeatability.py); check it with :func:`check_iterations`."""
-    ap.add_argument("--iterations", type=int, default=3,
+    """The checked ``--iterations`` option of the calibration (shared with
+    bench_calibration_reach.py and bench_repeatability.py)."""
+    ap.add_argument("--iterations", type=_iterations, default=3,
                     help=f"{prefix}Gauss-Newton iterations of the calibration (3, as the strict CI tests; "
                          "the diagnosis's default is 6)")
-
-
-def check_iterations(ap, n: int) -> None:
-    if not 1 <= n <= 50:
-        ap.error(f"--iterations {n}: accepted is a whole number from 1 to 50")
 
 
 def run(label, effects, perturb, seed, points, record, daq, fine, base, diag_kw, workers) -> dict:

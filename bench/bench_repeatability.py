@@ -126,7 +126,6 @@ def main(argv=None):
     M.add_iterations(ap, "--diagnose: ")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
-    M.check_iterations(ap, args.iterations)
     for name in args.campaigns:
         print(json.dumps(noise_check(name, args.workers)), flush=True)
     if args.diagnose:

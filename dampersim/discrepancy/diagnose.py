@@ -154,13 +154,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         def coeffs(s, points, errors=None):
             return drive.coefficients_of(runner, s, points, errors)
 
-        def _sensitivities(dy, h, x, y):
-            """d coefficients / d log factor at x from steps h (into dy), standardised per column.
-            A failed derivative run gives no direction (0), never a fit."""
-            for k in range(len(x)):
-                xk = x.copy()
-                xk[k] += h
-                dy[k] = np.nan_to_num((coeffs(calibrated_system(system, xk), ptr) - y) / h, nan=0.0)
+        def sensitivities(dy, h, x, y):
+            """d coefficients / d log factor at x from steps h (into dy, one map for all factors),
+            standardised per column. A failed derivative run gives no direction (0), never a fit."""
+            shifted = [calibrated_system(system, x + h * e) for e in np.eye(len(x))]
+            dy[:] = np.nan_to_num((drive.coefficients_of_sets(runner, shifted, ptr) - y) / h, nan=0.0)
             return columns(dy)
 
         def columns(dy):
@@ -193,12 +191,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights
             c_now, moved = cost(y_tr, x), False
             # the sensitivities from the step that last moved the factors (the longer one at first);
-            fresh = False  # when no step length lowers the cost along its direction, from the other one
+            # when no step length lowers the cost along its direction, from the other one
+            fresh = False
             for j in [first] + [i for i in range(len(steps)) if i != first]:
-                h = steps[j]
-                jac = _sensitivities(dys[h], h, x, y_tr)
-                if j == 0:
-                    fresh = True
+                jac = sensitivities(dys[steps[j]], steps[j], x, y_tr)
+                fresh = fresh or j == 0
                 dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
                 for frac in CAL_STEP_FRACTIONS:
                     xn = x + frac * dx
@@ -214,7 +211,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the naming's sensitivities are the longer step's: the last iteration's (taken at its start), or
         # taken again at the calibrated factors when the last iteration moved them with the shorter
         # step alone (so at most two sets per iteration in all, as costs.diagnosis_runs counts)
-        jac = columns(dys[steps[0]]) if fresh else _sensitivities(dys[steps[0]], steps[0], x, y_tr)
+        jac = columns(dys[steps[0]]) if fresh else sensitivities(dys[steps[0]], steps[0], x, y_tr)
         cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
         err_cal = {}
