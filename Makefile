@@ -8,6 +8,9 @@ VENV_PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 TEST_CACHE := $(CURDIR)/.test-cache
 PYTEST_ARGS ?=
+# Two processes: the strict identification diagnoses run beside the rest of the suite
+# (tests/conftest.py, APART); PYTEST_XDIST= runs everything in one process.
+PYTEST_XDIST ?= -n 2
 
 # numba's cache=True writes here, so it works in a fresh clone / read-only tree.
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba-cache
@@ -35,7 +38,7 @@ test: venv
 	mkdir -p $(TEST_CACHE)
 	bash scripts/ensure-chromium.sh
 	$(VENV)/bin/lint-imports --no-cache
-	$(VENV_PY) -m pytest $(PYTEST_ARGS)
+	$(VENV_PY) -m pytest $(PYTEST_XDIST) $(PYTEST_ARGS)
 
 bench: venv
 	@set -e; found=0; \

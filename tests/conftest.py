@@ -38,6 +38,28 @@ def cache_dir(tmp_path, monkeypatch):
         store.close_stores()
 
 
+#: test modules that `make test` runs in a process of their own (``-n 2``, pytest-xdist)
+#: beside the rest of the suite, which keeps its collection order in the other process:
+#: the strict identification diagnoses, a quarter of the suite's time on their own
+APART = ("tests/discrepancy/test_identification.py",)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Two lanes instead of xdist's per-test load balancing: the modules of APART in one
+    worker, everything else in another, each lane whole and in order (so module fixtures are
+    made once and tests that share the machine's processes or ports never overlap each
+    other). xdist's own ``--dist loadgroup`` would say this with markers, but it writes the
+    group into the test id in a way pytest 9 no longer reads."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class TwoLanes(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            return "apart" if nodeid.split("::", 1)[0] in APART else "suite"
+
+    return TwoLanes(config, log)
+
+
 def pytest_collection_modifyitems(config, items):
     if _chromium_available():
         return

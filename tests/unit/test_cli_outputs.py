@@ -142,25 +142,18 @@ def test_file_output_at_a_folder_or_below_a_file_is_one_line_exit_2(fresh, capsy
     assert "--out 'afile/m.html': cannot create the folder" in one_line_error(capsys)
 
 
-@pytest.mark.slow
 def test_diagnose_report_and_out_params_create_parent_folders(fresh, capsys, monkeypatch):
-    import functools
-
-    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy import drive
+    from dampersim.discrepancy.campaign_write import write_campaign
     from dampersim.parameters import at_thesis_segments, save_toml
+    from tests.discrepancy import fake_rig as F
 
-    # the folders are what is tested: one calibration iteration and one fitted candidate
-    # (the command reads diagnose() from its module when it runs)
-    monkeypatch.setattr(dg, "diagnose", functools.partial(dg.diagnose, calibration_iterations=1, shortlist=1))
-
-    # the thesis's 18/8 segments through --params: the folders are what is tested, and these
-    # counts halve the diagnosis's run time against the default 48/16
-    save_toml(at_thesis_segments(), "coarse.toml")
-    points = "map_900_150,map_1200_250,map_1500_150"
-    assert main(["synth", "--out", "campaign", "--points", points, "--record", "0.6", "--perturb", "0.03",
-                 "--params", "coarse.toml"]) == 0
-    capsys.readouterr()
-    args = ["diagnose", "campaign", "--workers", "2", "--json", "--candidates", "turbine_drag,pendulum_absorber",
+    # the folders are what is tested: the six-point campaign of the stand-in model, which the
+    # diagnosis drives in this process (--workers 1) in about a second instead of simulating
+    write_campaign(fresh / "campaign", [F.point(*p) for p in F.POINTS])
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model())
+    save_toml(at_thesis_segments(), "coarse.toml")  # --params is read on the way
+    args = ["diagnose", "campaign", "--workers", "1", "--json", "--candidates", "turbine_drag,pendulum_absorber",
             "--no-recommend", "--report", "out/h/report.html", "--out-params", "out/i/augmented.toml",
             "--params", "coarse.toml"]
     assert main([*args[:2], "--candidates", "warp_drive"]) == 2  # refused before any work, with the accepted names
