@@ -1,0 +1,29 @@
+"""`make test` runs the suite in two lanes (tests/conftest.py): the modules of APART in a
+worker of their own, everything else in the other, each lane whole. This checks the split the
+scheduler makes, so that a renamed module cannot silently fall back into the main lane."""
+
+import os
+
+import pytest
+
+from tests import conftest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def test_every_module_set_apart_exists():
+    for path in conftest.APART:
+        assert os.path.isfile(os.path.join(ROOT, path)), path
+
+
+def test_the_scheduler_puts_the_apart_modules_in_one_lane_and_the_rest_in_the_other(pytestconfig, monkeypatch):
+    loadscope = pytest.importorskip("xdist.scheduler.loadscope")  # `make test` installs it
+    # the scheduler reads the worker count from -n, which a run of this file alone lacks
+    monkeypatch.setattr(loadscope, "parse_tx_spec_config", lambda config: ["popen", "popen"])
+    sched = conftest.pytest_xdist_make_scheduler(pytestconfig, None)
+    ids = [f"{p}::test_x" for p in conftest.APART] + [f"{p}::test_x[a@b]" for p in conftest.APART]
+    assert {sched._split_scope(i) for i in ids} == {"apart"}
+    others = ["tests/unit/test_structure.py::test_each_module_is_small_and_says_its_job",
+              "tests/e2e/test_browser.py::test_moving_a_slider_updates_figures_and_the_url",
+              "tests/discrepancy/test_identification_extra.py::test_x"]
+    assert {sched._split_scope(i) for i in others} == {"suite"}
