@@ -7,14 +7,15 @@ one ramp) the whole diagnosis runs (no next-test design) and prints, per fitted 
 * ``laplace``: the Laplace evidence on the training points
   (:func:`dampersim.discrepancy.selection.log_evidence`), with ``cost`` (robust chi^2 plus
   prior terms that it starts from) and ``occam`` (laplace + cost / 2: with a learning rate
-  of 1, what the fitted parameters' prior and posterior widths add);
+  of 1 the Occam factor, what the fitted parameters' prior and posterior widths add; below 1
+  it also holds the tempering terms of selection.log_evidence);
 * ``ramps``: the ramps' predictive log likelihood; ``penalty``: the held-out penalty;
   ``total``: the sum the posterior reads, with ``log_prior`` the model prior's log;
 * ``x``: the fitted log calibration factors; ``start``: where the fit started;
   ``magnitude``: the fitted effect magnitude(s);
 * ``train_point_chi2``: chi^2 per real residual of each training point at the model's fit;
-* ``cost_without_effect`` (single effects): the same objective with the model's calibration
-  factors and its effect taken out, from runs of the training points made for this bench
+* ``cost_without_effect`` (single effects): the same objective at the model's calibration
+  factors without its effect or the effect's prior terms, from runs of the training points made for this bench
   (not counted in ``simulations``). Near a single effect's cost it says the fit gained by
   the calibration factors its fit reached, not by the effect.
 
@@ -63,7 +64,7 @@ def terms_of(camp, workers: int) -> dict:
         return None if errs else float(namer.cost(y, fit["x"]))
 
     def spy_penalty(lik, models, held, eta):
-        rows = [i for i in range(len(lik.meas)) if i % 3 != 1]  # the diagnosis's training rows
+        rows = held_namer["namer"].train
         per = 2 * len(lik.orders)
         seen["models"] = {
             label: {"cost": float(fit["cost"]), "start": fit.get("start"),
@@ -91,8 +92,10 @@ def terms_of(camp, workers: int) -> dict:
         d = diag.to_json()
     finally:
         selection.held_out_penalty, selection.model_log_evidence, dg.Namer = real_penalty, real_log_z, real_namer
+    if "models" not in seen:  # not diagnosed: no model was fitted
+        return {"verdict": d["verdict"], "message": d["message"], "simulations": d["simulations"]}
     priors = d["likelihood"]["model_prior"]
-    for label, m in seen.get("models", {}).items():
+    for label, m in seen["models"].items():
         m["log_prior"] = math.log(priors[label]) if priors.get(label) else None
     train = [p["id"] for p in diag.points if not p["held_out"]]
     return {"verdict": d["verdict"], "posterior": {k: round(v, 3) for k, v in d["posterior"].items() if v >= 0.001},
@@ -103,7 +106,7 @@ def terms_of(camp, workers: int) -> dict:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("cases", nargs="+", help="hard-matrix case ids, e.g. control/none/1")
+    ap.add_argument("cases", nargs="*", default=["control/none/1"], help="hard-matrix case ids (default control/none/1)")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     matrix = {c["id"]: c for c in B.hard_cases()}

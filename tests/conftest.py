@@ -50,7 +50,11 @@ def pytest_xdist_make_scheduler(config, log):
     worker, everything else in another, each lane whole and in order (so module fixtures are
     made once and tests that share the machine's processes or ports never overlap each
     other). xdist's own ``--dist loadgroup`` would say this with markers, but it writes the
-    group into the test id in a way pytest 9 no longer reads."""
+    group into the test id in a way pytest 9 no longer reads. Only for xdist's default
+    distribution (``-n N`` alone): an explicit ``--dist`` keeps xdist's own scheduler. With
+    more than two workers the others stop at once: there are two lanes."""
+    if config.getvalue("dist") != "load":
+        return None
     from xdist.scheduler import LoadScopeScheduling
 
     class TwoLanes(LoadScopeScheduling):
