@@ -36,8 +36,7 @@ import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-import bench_discrepancy as B  # noqa: E402 - the benchmark's matrix
-import bench_sigma_terms as S  # noqa: E402 - its campaign, as the sigma-terms bench builds it
+import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
 
 from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive, selection  # noqa: E402
@@ -109,10 +108,7 @@ def main(argv=None):
     ap.add_argument("cases", nargs="*", default=["control/none/1"], help="hard-matrix case ids (default control/none/1)")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
-    matrix = {c["id"]: c for c in B.hard_cases()}
-    unknown = [c for c in a.cases if c not in matrix]
-    if unknown:
-        ap.error(f"unknown case(s) {', '.join(unknown)}: see python bench/bench_discrepancy.py --list")
+    matrix = S.named_cases(ap, a.cases)
     for cid in a.cases:
         with tempfile.TemporaryDirectory() as d:
             camp = S.campaign_of(matrix[cid], os.path.join(d, "campaign"), a.workers)

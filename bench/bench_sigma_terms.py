@@ -52,6 +52,15 @@ def campaign_of(case, folder, workers: int):
     return read_campaign(folder)
 
 
+def named_cases(ap, ids) -> dict:
+    """{id: case} of the hard matrix for the case ids asked for; an unknown id is the parser's error."""
+    matrix = {c["id"]: c for c in B.hard_cases()}
+    unknown = [c for c in ids if c not in matrix]
+    if unknown:
+        ap.error(f"unknown case(s) {', '.join(unknown)}: see python bench/bench_discrepancy.py --list")
+    return matrix
+
+
 def terms_of(camp, workers: int) -> dict:
     """The variances diagnose's compare step passes to cell_sigma, by term."""
     seen = {}
@@ -80,10 +89,7 @@ def main(argv=None):
     bad = [f for f in a.floor if not 0.0 < f < 1.0]
     if bad:
         ap.error(f"--floor {bad[0]}: accepted is a share between 0 and 1, both excluded")
-    matrix = {c["id"]: c for c in B.hard_cases()}
-    unknown = [c for c in a.cases if c not in matrix]
-    if unknown:
-        ap.error(f"unknown case(s) {', '.join(unknown)}: see python bench/bench_discrepancy.py --list")
+    matrix = named_cases(ap, a.cases)
     for cid in a.cases:
         with tempfile.TemporaryDirectory() as d:
             camp = campaign_of(matrix[cid], os.path.join(d, "campaign"), a.workers)
