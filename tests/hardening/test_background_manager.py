@@ -226,6 +226,23 @@ def test_identical_work_is_computed_once_and_reaches_every_waiter(manager_factor
     assert {c.result["pid"] for c in callers + [other]} == pids
 
 
+def test_a_repeated_poll_after_the_shared_result_is_collected_sends_nothing_new(manager_factory):
+    # the order that once failed the HTTP test below: the job ends between the two tabs'
+    # polls, the second tab is answered first, the first tab's answer removes the result,
+    # and a poll the second tab repeats must not read that as "the cache was cleared"
+    manager = manager_factory(max_jobs=2, work_of=posted_work)
+    first, second = (Caller(manager, "sleep_and_return", {"work": "w", "nonce": i, "sleep": 0.2}) for i in range(2))
+    job_id = manager.registry.waiter(first.job).job_id
+    assert manager.registry.waiter(second.job).job_id == job_id
+    wait_until(lambda: second.poll() is False, 10, "the shared job's end")  # one 0.2 s job, one fork
+    assert second.result["tag"] is None and manager.handle.get(_background._KEY_PREFIX + job_id) is not None
+    assert first.poll() is False and first.result == second.result
+    assert manager.handle.get(_background._KEY_PREFIX + job_id) is None  # the last waiter collected it
+    with _FLASK.test_request_context("/_dash-update-component", method="POST"):
+        assert manager.get_result(second.key, second.job) is manager.UNDEFINED  # was the "cleared" error
+        assert manager.job_running(second.job) is False
+
+
 def test_cancel_of_a_shared_job_keeps_it_running_for_the_other_waiter(manager_factory):
     manager = manager_factory(max_jobs=2, work_of=posted_work)
     first, second = (Caller(manager, "sleep_and_return", {"work": "w", "sleep": 1.0}) for _ in range(2))
@@ -415,12 +432,17 @@ def test_through_dash_http_identical_work_is_shared_and_errors_stay_private(mana
     for i, tab in enumerate(tabs):
         tab.start({"work": "same sweep", "nonce": i, "sleep": 0.5})
     deadline = time.monotonic() + 10  # 0.5 s of work plus the fork
-    while any([tab.poll() for tab in tabs]):
+    pending = list(tabs)
+    while pending:  # a tab stops polling once answered, as the renderer does
         assert time.monotonic() < deadline
+        pending = [tab for tab in pending if tab.poll()]
         peak.append(len(job_processes()))
         time.sleep(POLL_S)
     answers = [tab.answer.get_json()["response"]["out"]["children"] for tab in tabs]
     assert answers[0] == answers[1] and max(peak) == 1  # one process, both tabs answered
+    for tab in tabs:  # a poll repeated after the answer (e.g. in flight meanwhile) changes nothing
+        repeat = tab.client.post("/_dash-update-component", json=tab.body, query_string=tab.handles)
+        assert repeat.status_code == 204
     tab = tabs[0]
     tab.start({"fail": True})
     deadline = time.monotonic() + 10  # a fork and an immediate failure
