@@ -310,7 +310,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     follow), coarse scan and Gauss-Newton (each iteration with up to two sensitivity steps)
     on the training points, the
     held-out check, a screen per candidate from two starts, the shortlist's fits from
-    both starts (with their shape parameters) and their held-out checks, a pair of
+    both starts (with their shape parameters) and their held-out checks, "no missing
+    effect" at the calibration factors of each fitted effect (and its held-out check), a pair of
     effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
     next-test design's runs have their own length (:func:`diagnosis_cost`)."""
     n = max(0, int(n_points))
@@ -323,6 +324,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += DIAGNOSIS_STARTS * int(n_candidates) * train
     shortlist = min(DIAGNOSIS_SHORTLIST, max(1, int(n_candidates)))
     runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + DIAGNOSIS_SHAPE_RUNS * train + held)
+    runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_PAIR_RUNS * train + held
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing

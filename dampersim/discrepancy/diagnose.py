@@ -266,6 +266,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["effects"] = [name]
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
+        if namer.recalibrate(models, held_pts, bias_w):  # "none" at the best factors a candidate's fit found
+            cal, x, y_tr = namer.starts["calibrated"]
+            y_cal[train], y_cal[held] = y_tr, models["none"]["yh"]
+
         def temper():
             """The learning rate from the best-fitting model so far: when even that model leaves
             a training misfit above the noise, every model's evidence and covariance are read
@@ -340,7 +344,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
 
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
-            typ = screen[name]["y"] if screen[name]["start"] == "calibrated" else None
+            typ = screen[name]["y"] if screen[name]["start"] == "calibrated" and "refactored" not in models["none"] else None
             detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain, eta)
         # 4) augment
         final = models[top]

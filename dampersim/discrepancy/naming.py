@@ -202,6 +202,45 @@ class Namer:
         best["column"] = np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - best["y"]) / step)
         return best
 
+    def recalibrate(self, models, held_pts, bias=None) -> bool:
+        """Give "no missing effect" the calibration factors every single-effect fit reached.
+
+        Each candidate fit re-calibrates at every magnitude it tries (:meth:`fit`), while
+        "none" keeps the factors where the calibration's Gauss-Newton stopped; an effect that
+        changes nothing could then win by its better calibration alone (docs/discrepancy.md,
+        "Why the free play wins on control/none/1"). So "none" is evaluated at the factors of
+        each fitted single effect (an effect's evidence can lead while its objective does not:
+        ramps, Occam factors), and moves to the best of them when that lowers its objective and
+        the held-out points run too. Updates ``models["none"]``
+        (cost, factors, coefficients, system, held-out run, nuisance, evidence, ``refactored``:
+        the fitted model whose factors it took) and the "calibrated" start; True when it moved.
+        Runs: the training points per distinct trial factors, the held-out points once."""
+        none = models["none"]
+        tried, best = [np.asarray(none["x"])], None
+        for label, fit in models.items():
+            xc = np.asarray(fit["x"])
+            if fit.get("base") is not None or any(np.array_equal(xc, t) for t in tried):
+                continue
+            tried.append(xc)
+            errs = {}
+            y = drive.coefficients_of(self.runner, _with_factors(self.starts, None, xc), self.points, errs)
+            c = math.inf if errs else self.cost(y, xc)
+            if c < (none["cost"] if best is None else best[0]):
+                best = (c, xc, y, label)
+        if best is None:
+            return False
+        c, xc, y, label = best
+        system = _with_factors(self.starts, None, xc)
+        errs = {}
+        yh = drive.coefficients_of(self.runner, system, held_pts, errs)
+        if errs:  # the calibration-only model must run everywhere the old one did
+            return False
+        none.update(cost=c, x=xc, y=y, system=system, yh=yh, nuisance=self.lik.profile(y, self.train)[1],
+                    refactored=label)
+        none["log_z"], none["cov"] = self.evidence(none, [], bias)
+        self.starts["calibrated"] = (system, xc, y)
+        return True
+
     def fit_shapes(self, name, fit):
         """One Gauss-Newton step on the effect's shape parameters (log scale, prior
         SHAPE_PRIOR_SD) jointly with its magnitude and the calibration, accepted when a real

@@ -170,7 +170,7 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9
     # 12 points: 8 training, 4 held out (every third)
     assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
-                                           + 15 * 8 + 4 + 3 * 8 * 8)
+                                           + 3 * 8 + 4 + 15 * 8 + 4 + 3 * 8 * 8)
 
 
 def test_budgets_read_the_environment_at_call_time(monkeypatch):
