@@ -12,6 +12,8 @@ one ramp) the whole diagnosis runs (no next-test design) and prints, per fitted 
 * ``ramps``: the ramps' predictive log likelihood; ``penalty``: the held-out penalty;
   ``total``: the sum the posterior reads, with ``log_prior`` the model prior's log;
 * ``x``: the fitted log calibration factors; ``start``: where the fit started;
+  ``refactored`` ("none" only): the fitted effect whose calibration factors "none" took
+  (:meth:`dampersim.discrepancy.naming.Namer.recalibrate`), or null;
   ``magnitude``: the fitted effect magnitude(s);
 * ``train_point_chi2``: chi^2 per real residual of each training point at the model's fit;
 * ``cost_without_effect`` (single effects): the same objective at the model's calibration
@@ -68,7 +70,7 @@ def terms_of(camp, workers: int) -> dict:
         seen["models"] = {
             label: {"cost": float(fit["cost"]), "start": fit.get("start"),
                     "x": [round(float(v), 4) for v in fit["x"]],
-                    "magnitude": fit.get("m"),
+                    "magnitude": fit.get("m"), "refactored": fit.get("refactored"),
                     "train_point_chi2": [round(float(c) / per, 3)
                                          for c in lik.point_chi2(fit["y"], rows, fit["nuisance"])],
                     "cost_without_effect": without_effect(fit) if len(fit["effects"]) == 1 else None}
