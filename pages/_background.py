@@ -455,8 +455,8 @@ class JobQueueManager(DiskcacheManager):
         self._tick()
         result = self.handle.get(_KEY_PREFIX + info.job_id, _UNDEFINED)
         if result is _UNDEFINED:
-            if info.collected:  # a repeat of a poll this waiter was already answered on, after
-                return _UNDEFINED  # the last waiter's collect removed the result: nothing new to send
+            if (self.registry.waiter(info.waiter_id) or info).collected:  # read again: this waiter was answered
+                return _UNDEFINED  # (maybe by a poll in flight meanwhile) and the last collect removed the result
             state = self.registry.job_state(info.job_id)
             if state == FAILED:
                 result = {"background_callback_error": {"msg": DIED_TEXT, "tb": ""}}

@@ -407,7 +407,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "nuisance": {"output_gain": math.exp(final["nuisance"][0]),
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
-                    "held_out_penalty": penalty,
+                    "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_noise_scale": ramp_lik.scales.get(top) if ramp_lik is not None else None,

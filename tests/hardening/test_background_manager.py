@@ -13,6 +13,7 @@ stand-in for the dashboard's resolver, which reads the work key stored with a ti
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 import signal
@@ -226,7 +227,7 @@ def test_identical_work_is_computed_once_and_reaches_every_waiter(manager_factor
     assert {c.result["pid"] for c in callers + [other]} == pids
 
 
-def test_a_repeated_poll_after_the_shared_result_is_collected_sends_nothing_new(manager_factory):
+def test_a_repeated_poll_after_the_shared_result_is_collected_sends_nothing_new(manager_factory, monkeypatch):
     # the order that once failed the HTTP test below: the job ends between the two tabs'
     # polls, the second tab is answered first, the first tab's answer removes the result,
     # and a poll the second tab repeats must not read that as "the cache was cleared"
@@ -241,6 +242,10 @@ def test_a_repeated_poll_after_the_shared_result_is_collected_sends_nothing_new(
     with _FLASK.test_request_context("/_dash-update-component", method="POST"):
         assert manager.get_result(second.key, second.job) is manager.UNDEFINED  # was the "cleared" error
         assert manager.job_running(second.job) is False
+        # two polls of one waiter in flight: this one read the waiter before the other collected
+        stale = dataclasses.replace(manager.registry.waiter(second.job), collected=False)
+        monkeypatch.setattr(manager, "_waiter", lambda key, job=None: stale)
+        assert manager.get_result(second.key, second.job) is manager.UNDEFINED
 
 
 def test_cancel_of_a_shared_job_keeps_it_running_for_the_other_waiter(manager_factory):
