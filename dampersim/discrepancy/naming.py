@@ -219,7 +219,7 @@ class Namer:
 
         The moved model's evidence keeps the calibration's Jacobian, robust weights and
         linearisation nuisance of where the Gauss-Newton stopped, as every effect's evidence
-        does (the factors move by about 1 % in the benchmark's controls; near a resonance the
+        does (in control/none/1 the factors move by less than 1 %; near a resonance the
         Jacobian at the new factors could differ). The move is judged on the training points
         alone: the held-out misfit of "none" may rise, and so may the baseline of the
         held-out penalty."""
