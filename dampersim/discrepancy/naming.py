@@ -231,14 +231,14 @@ class Namer:
                 continue
             tried.append(xc)
             errs = {}
-            y = drive.coefficients_of(self.runner, _with_factors(self.starts, None, xc), self.points, errs)
+            system = _with_factors(self.starts, None, xc)
+            y = drive.coefficients_of(self.runner, system, self.points, errs)
             c = math.inf if errs else self.cost(y, xc)
             if c < (none["cost"] if best is None else best[0]):
-                best = (c, xc, y, label)
+                best = (c, xc, y, label, system)
         if best is None:
             return False
-        c, xc, y, label = best
-        system = _with_factors(self.starts, None, xc)
+        c, xc, y, label, system = best
         errs = {}
         yh = drive.coefficients_of(self.runner, system, held_pts, errs)
         if errs:  # the calibration-only model must run everywhere the old one did
