@@ -436,13 +436,8 @@ def test_through_dash_http_identical_work_is_shared_and_errors_stay_private(mana
     peak = []
     for i, tab in enumerate(tabs):
         tab.start({"work": "same sweep", "nonce": i, "sleep": 0.5})
-    deadline = time.monotonic() + 10  # 0.5 s of work plus the fork
-    pending = list(tabs)
-    while pending:  # a tab stops polling once answered, as the renderer does
-        assert time.monotonic() < deadline
-        pending = [tab for tab in pending if tab.poll()]
-        peak.append(len(job_processes()))
-        time.sleep(POLL_S)
+    # a tab stops polling once answered, as the renderer does; budget: 0.5 s of work plus the fork
+    poll_all(tabs, budget_s=10, watch=lambda: peak.append(len(job_processes())))
     answers = [tab.answer.get_json()["response"]["out"]["children"] for tab in tabs]
     assert answers[0] == answers[1] and max(peak) == 1  # one process, both tabs answered
     for tab in tabs:  # a poll repeated after the answer (e.g. in flight meanwhile) changes nothing
