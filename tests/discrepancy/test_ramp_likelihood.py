@@ -145,3 +145,77 @@ def test_detectability_reads_the_ramps_at_the_best_predictions_noise_scale():
     # every prediction failed: ramp_reference falls back to "none", and so does the scale
     lik.settle({"none": -math.inf, "output_backlash": -math.inf}, {"none": 3.0, "output_backlash": 1.0}, {})
     assert lik.noise_scale == 3.0
+
+
+def _loop_widening(p, deg):
+    """A windup change that widens the loop: +deg while the torque rises, -deg while it falls
+    (what a friction pair's share, or a free play, does to a ramp) [rad]."""
+    return np.where(np.gradient(p.input_torque) > 0, 1.0, -1.0) * np.radians(deg)
+
+
+def test_what_the_calibration_cannot_follow_is_a_direction_of_the_prediction():
+    """A ramp whose loop is wider than the calibrated model's by what one uncalibrated
+    direction moves at one standard uncertainty is predicted nearly as well as a matching
+    ramp: the direction is a column of the covariance (unit prior), not a misfit. Without
+    that column the same ramp needs a large misfit scale. A change of another shape (a step
+    at the torque reversal only) is not taken up by it."""
+    sd = math.radians(0.02)
+    p = _noisy(F.ramp("r0"), sd, 3)
+    shape = F.ramp("r0").windup
+    widen = _loop_widening(p, 0.3)
+    meas = dataclasses.replace(p, windup=p.windup + widen)
+    base = {p.id: shape}
+    moved = [("pair_friction_split", [{p.id: shape + widen}, {p.id: shape - widen}])]
+    with_dir = RampLikelihood([meas], base, base, moved)
+    without = RampLikelihood([meas], base, base)
+    # the column is half the difference of the up and down runs, on the compared samples
+    assert with_dir.uncalibrated.shape == (with_dir.residuals, 1)
+    assert with_dir.uncalibrated[:, 0] == pytest.approx(with_dir.column({p.id: shape + widen}, base, 1.0))
+    no_params = np.zeros((with_dir.residuals, 0))
+    ll_with = with_dir.predictive(base, no_params, np.zeros((0, 0)))[0]
+    assert with_dir.scale < 2.0
+    ll_without = without.predictive(base, no_params, np.zeros((0, 0)))[0]
+    assert without.scale > 5.0
+    assert ll_with > ll_without + 10.0
+    # the signature of that direction at one standard uncertainty costs about one unit of
+    # chi^2 against it (its prior), far less than without the column
+    sig = {p.id: shape + widen}
+    assert with_dir.signature_gain(sig, base, no_params, np.zeros((0, 0)), 1.0) < 1.5
+    assert without.signature_gain(sig, base, no_params, np.zeros((0, 0)), 1.0) > 100.0
+    # a failed moved run gives no direction (zeros), never numbers
+    failed = RampLikelihood([meas], base, base, [("tertiary_inertia", [{p.id: "diverged"}, {p.id: shape}])])
+    assert not np.any(failed.uncalibrated)
+
+
+def test_the_ramp_likelihood_runs_the_uncalibrated_moves_of_the_calibrated_set():
+    """ramp_likelihood replays each ramp with the calibrated set, its coarse check and the set
+    moved up and down along every UNCALIBRATED direction (costs.DIAGNOSIS_RAMP_RUNS counts
+    them), in one map; the columns come from those moved runs."""
+    from dampersim.discrepancy import ramps
+    from dampersim.discrepancy.fitting import UNCALIBRATED, uncalibrated_systems
+    from dampersim.parameters import at_thesis_segments
+
+    p = F.ramp("r0")
+    system = at_thesis_segments()
+    tertiary = [s.inertias.tertiary for _, pair in uncalibrated_systems(system) for s in pair]
+
+    class Runner:
+        def __init__(self):
+            self.maps = []
+
+        def map(self, tasks):
+            self.maps.append(len(tasks))
+            # a windup that tells the sets apart: scaled by the set's tertiary inertia
+            return [{"windup": t[1].windup * t[0].inertias.tertiary / system.inertias.tertiary} for t in tasks]
+
+    runner = Runner()
+    lik, base = ramps.ramp_likelihood(runner, system, [p])
+    assert runner.maps == [2 + 2 * len(UNCALIBRATED)]
+    assert lik.uncalibrated.shape == (lik.residuals, len(UNCALIBRATED))
+    k = list(UNCALIBRATED).index("tertiary_inertia")
+    up, down = (t / system.inertias.tertiary for t in tertiary[2 * k:2 * k + 2])
+    expected = 0.5 * (up - down) * lik._model(base)
+    assert lik.uncalibrated[:, k] == pytest.approx(expected)
+    assert np.any(lik.uncalibrated[:, k])
+    others = [i for i in range(len(UNCALIBRATED)) if i != k]
+    assert not np.any(lik.uncalibrated[:, others])  # the splits leave the tertiary inertia alone
