@@ -185,7 +185,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         steps = fitting.CAL_DERIVATIVE_STEPS
         dys = {h: np.zeros((len(x),) + y_tr.shape, dtype=complex) for h in steps}
         first = 0  # the derivative step an iteration starts with: the one that last moved the factors
-        fresh = True  # the last iteration took the longer step's sensitivities (at its start)
+        fresh = False  # the last iteration took the longer step's sensitivities (at its start); none yet
         for it in range(calibration_iterations):
             report(0.08 + 0.25 * it / calibration_iterations, f"calibrate: iteration {it + 1} of {calibration_iterations}")
             lik.fit_nuisance(y_tr, train)  # linearise at the current nuisance and robust weights

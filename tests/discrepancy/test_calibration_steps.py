@@ -107,3 +107,26 @@ def test_without_a_retry_the_long_step_is_used_throughout(monkeypatch):
     assert steps and set(steps) == {LONG}
     # no second taking of the sensitivities: the naming gets the last iteration's
     assert not _retaken(xs, solves)
+
+
+def test_without_iterations_the_naming_gets_sensitivities_at_the_estimate(monkeypatch):
+    """calibration_iterations=0 skips the scan and Gauss-Newton; the naming must still get the
+    longer step's sensitivities, taken at the estimate (once), not the zeros of a set never run."""
+    from dampersim.discrepancy import naming
+
+    seen = {}
+    real_init = naming.Namer.__init__
+
+    def spy_init(self, runner, lik, train, points, jac, *args, **kwargs):
+        seen["jac"] = np.array(jac)
+        real_init(self, runner, lik, train, points, jac, *args, **kwargs)
+
+    monkeypatch.setattr(naming.Namer, "__init__", spy_init)
+    d, xs, solves, steps = _diagnose(monkeypatch, iterations=0)
+    assert not solves  # no Gauss-Newton step
+    assert d.verdict != "insufficient_data"
+    taken = [k for k in range(N, len(xs) + 1) if _step_of(xs[k - N:k], np.zeros(N)) == LONG]
+    assert len(taken) == 1  # one set of sensitivities, at the estimate
+    # the stand-in's orders follow the outer stiffness and the secondary inertia (fake_rig): their columns move
+    moving = np.abs(seen["jac"]).max(axis=0) > 0
+    assert seen["jac"].shape[1] == N and moving.sum() == 2, moving
