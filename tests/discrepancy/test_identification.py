@@ -42,7 +42,7 @@ BASE = at_thesis_segments()
 def _diagnosis(tmp_path_factory, name, effects, daq=None):
     d = tmp_path_factory.mktemp(name)
     synthesize(d / "c", effects=effects, perturb=0.03, seed=3, truth=d / "truth.json", points=POINTS, record=0.8,
-               daq=daq, base=BASE)
+               daq=daq, base=BASE, workers=WORKERS)  # the truth's runs are seeded per point: any count gives the same
     return diagnose(read_campaign(d / "c"), BASE, workers=WORKERS, candidates=CANDIDATES, calibration_iterations=3,
                     shortlist=2, recommend=False)
 

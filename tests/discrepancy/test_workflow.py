@@ -44,6 +44,19 @@ def test_synth_keeps_the_truth_out_of_the_campaign(hidden):
         synthesize(out, points=POINTS[:1], truth=out / "t.json", record=0.6)
 
 
+def test_synth_gives_the_same_campaign_with_any_worker_count(hidden, tmp_path):
+    """Each point's truth run is seeded by the campaign seed and the point's place in the
+    plan, so a process pool writes the same records as one process (the CI identification
+    tests synthesise in parallel and rely on it)."""
+    out, _truth = hidden
+    again = tmp_path / "c"
+    synthesize(again, effects=[("pendulum_absorber", {"inertia": 0.002})], perturb=0.03, seed=3,
+               truth=tmp_path / "truth.json", points=POINTS, record=0.6, workers=2)
+    first = {os.path.relpath(k, out): v for k, v in _digest(out).items()}
+    second = {os.path.relpath(k, again): v for k, v in _digest(again).items()}
+    assert first == second and len(first) > len(POINTS)
+
+
 def test_bad_campaign_reports_every_problem_and_keeps_valid_points(hidden, tmp_path):
     import shutil
 
