@@ -291,15 +291,14 @@ DIAGNOSIS_DESIGN_S = 0.6 + 1.0  # simulated length of one design run [s] (start-
 #: simulated before each torsional record of a diagnosis run [s]: the measured drive's start-up
 #: (MeasuredTorque's mean and amplitude ramps, 0.3 s each) and drive.DRIVE_SETTLE, 0.5 s
 DIAGNOSIS_LEAD_IN_S = 0.6 + 0.5
-#: replays of each ramp: as given, calibrated, its coarse check, the calibrated set moved up and down
-#: along the three directions the calibration cannot follow, six calibration sensitivities, each
+#: replays of each ramp: as given, calibrated, its coarse check, six calibration sensitivities, each
 #: fitted model (shortlist and a pair) with its magnitude sensitivities (two for the pair), the
 #: sizing search of the most probable effect (10 + 2 for its curvature) and that model afterwards
 DIAGNOSIS_RAMP_SIZING = 10 + 2
 #: ... and the detectability of the effects that show in ramps (three, design.RAMP_PROTOCOLS) at
 #: three magnitudes each
 DIAGNOSIS_RAMP_DETECT = 3 * 3
-DIAGNOSIS_RAMP_RUNS = (3 + 2 * 3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1 + DIAGNOSIS_RAMP_SIZING + 1
+DIAGNOSIS_RAMP_RUNS = (3 + DIAGNOSIS_FACTORS + 2 * (DIAGNOSIS_SHORTLIST + 1) + 1 + DIAGNOSIS_RAMP_SIZING + 1
                        + DIAGNOSIS_RAMP_DETECT)
 
 

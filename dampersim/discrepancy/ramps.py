@@ -12,16 +12,8 @@ simulate_point`); the simulated and measured windup are low-passed at 10 Hz as t
   two thirds of the spring segments (as for the torsional points);
 * a floor of WINDUP_FLOOR_DEG.
 
-Two nuisances enter every prediction as correlated directions, not as sample noise: the
-angle channels' zero (one offset per ramp under a Gaussian prior of OFFSET_PRIOR_DEG), and
-what the calibration cannot follow (:data:`~dampersim.discrepancy.fitting.UNCALIBRATED`:
-the split inside a calibration group, the tertiary inertia): for each direction, half the
-change of the samples between the calibrated set moved one standard uncertainty up and down
-(:func:`~dampersim.discrepancy.fitting.uncalibrated_systems`), under a unit prior. The
-torsional cells carry the same moves as a variance (:mod:`dampersim.discrepancy.likelihood`);
-a ramp's samples move together along such a direction (a friction pair's share widens the
-whole loop), so there it is a column of the prediction's covariance, and an effect that
-mimics it (a free play widens the loop too) gains only what that column cannot take. The models are fitted on the torsional points; a ramp then enters each
+The angle channels' zero is a nuisance: one offset per ramp under a Gaussian prior of
+OFFSET_PRIOR_DEG. The models are fitted on the torsional points; a ramp then enters each
 model's evidence as a prediction (:meth:`RampLikelihood.predictive`): the residual's
 covariance carries the fitted parameters' uncertainty through the ramp's sensitivity to them,
 which also gives the smooth, correlated part of a ramp's misfit its proper weight. The
@@ -40,7 +32,7 @@ import math
 import numpy as np
 
 from dampersim.discrepancy import drive
-from dampersim.discrepancy.fitting import coarse_system, uncalibrated_systems
+from dampersim.discrepancy.fitting import coarse_system
 from dampersim.signal import lowpass_first_order
 
 #: compared windup samples per second of ramp
@@ -109,24 +101,14 @@ def ramp_reference(ll: dict) -> str:
 
 def run_ramps(runner, system, points) -> dict:
     """{point id: simulated windup [rad] on the record's time base, or the run's error text}."""
-    return run_ramp_sets(runner, [system], points)[0]
-
-
-def run_ramp_sets(runner, systems, points) -> list:
-    """:func:`run_ramps` of several parameter sets in one map of the runner: one dict per set."""
-    out = runner.map([(drive.diagnosis_system(s), p) for s in systems for p in points])
-    runs = [(o["windup"] if "windup" in o else o.get("error", "no result")) for o in out]
-    n = len(points)
-    return [{p.id: w for p, w in zip(points, runs[k * n:(k + 1) * n])} for k in range(len(systems))]
+    out = runner.map([(drive.diagnosis_system(system), p) for p in points])
+    return {p.id: (o["windup"] if "windup" in o else o.get("error", "no result")) for p, o in zip(points, out)}
 
 
 class RampLikelihood:
     """chi^2 of model windups against the measured ramps (offset per ramp fitted)."""
 
-    def __init__(self, points, base: dict, coarse: dict, moved=()):
-        """``base``, ``coarse``: {point id: windup [rad] or error text} of the calibrated set and
-        its discretisation check; ``moved``: [(direction, [windups moved up, windups moved
-        down])] along the directions the calibration cannot follow (none: no such columns)."""
+    def __init__(self, points, base: dict, coarse: dict):
         self.points = [p for p in points if not isinstance(base.get(p.id), str)]
         self.scale = 1.0  # the uncertainty scale of the last prediction
         self.whitened = None  # the last prediction's whitened residual
@@ -144,10 +126,6 @@ class RampLikelihood:
             if not isinstance(coarse.get(p.id), str) and coarse.get(p.id) is not None:
                 model = np.abs(_filtered(coarse[p.id], fs) - _filtered(base[p.id], fs))[i]
             self.sigma[p.id] = np.sqrt(windup_noise(p) ** 2 + model ** 2 + floor ** 2)
-        #: samples x directions: each UNCALIBRATED direction's change for one standard
-        #: uncertainty (half the difference of the up and down runs; zeros where a run failed)
-        self.uncalibrated = np.column_stack(
-            [np.zeros(self.residuals)] + [0.5 * self.column(up, down, 1.0) for _, (up, down) in moved])[:, 1:]
 
     @property
     def residuals(self) -> int:
@@ -209,31 +187,28 @@ class RampLikelihood:
         return total, per
 
     def _parts(self, jac, cov):
-        """(J, C, sample variances, number of parameters): the sensitivities with the
-        uncalibrated directions and the ramps' angle offsets appended, the parameter
-        covariance with their priors (unit, OFFSET_PRIOR_DEG), and sigma^2 of every sample."""
+        """(J, C, sample variances): the sensitivities with the ramps' angle offsets appended,
+        the parameter covariance with the offsets' prior, and sigma^2 of every sample."""
         so2 = math.radians(OFFSET_PRIOR_DEG) ** 2
-        off, unc = self.offset_columns(), self.uncalibrated
-        jac = np.asarray(jac, dtype=float).reshape(self.residuals, -1)
-        n, d = jac.shape[1], unc.shape[1]
-        j = np.column_stack([jac, unc, off])
+        off = self.offset_columns()
+        j = np.column_stack([np.asarray(jac, dtype=float).reshape(self.residuals, -1), off])
+        n = j.shape[1] - off.shape[1]
         c = np.zeros((j.shape[1], j.shape[1]))
         c[:n, :n] = cov
-        c[n:n + d, n:n + d] = np.eye(d)
-        c[n + d:, n + d:] = np.eye(off.shape[1]) * so2
-        return j, c, np.concatenate([self.sigma[p.id] ** 2 for p in self.points]), n
+        c[n:, n:] = np.eye(off.shape[1]) * so2
+        return j, c, np.concatenate([self.sigma[p.id] ** 2 for p in self.points])
 
     def _covariance(self, jac, cov, scale: float):
         """diag((scale sigma)^2) + J C J' (see :meth:`_parts`)."""
-        j, c, sig2, _ = self._parts(jac, cov)
+        j, c, sig2 = self._parts(jac, cov)
         return np.diag(sig2 * scale ** 2) + j @ c @ j.T
 
     def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float | None = None) -> float:
         """The chi^2 an effect's ramp signature (windups minus the base model's) would add
         against a model with parameter covariance ``cov`` through sensitivities ``jac`` and
         uncertainty scale ``scale`` (default: ``noise_scale``, set by :meth:`settle`): what
-        the calibration, the uncalibrated directions and the offsets cannot absorb (0 when
-        a run failed or there are no samples)."""
+        the calibration and the offsets cannot absorb (0 when a run failed or there are no
+        samples)."""
         a, b = self._model(windups), self._model(base)
         if not self.residuals or a is None or b is None:
             return 0.0
@@ -265,9 +240,8 @@ class RampLikelihood:
         """The ramps' log likelihood given a model fitted on the torsional points, with that
         fit's parameter uncertainty carried over (linearised): the samples' residual r is
         Gaussian with covariance diag(sigma^2) + J cov J' (J: d samples / d parameters, the
-        uncalibrated directions and the ramps' angle offsets appended with their priors), so
-        a ramp does not condemn a model for what its fit leaves uncertain or the calibration
-        cannot follow. Returns (log likelihood up to a constant common to
+        ramps' angle offsets appended with their prior), so a ramp does not condemn a model
+        for what its fit leaves uncertain. Returns (log likelihood up to a constant common to
         all models, times the effective share ``fraction``; chi^2; parameter update
         cov J' S^-1 r; updated covariance) or (-inf, inf, None, None) when a run failed. The
         whitened residual L^-1 r (S = L L') is kept as ``whitened``."""
@@ -277,7 +251,8 @@ class RampLikelihood:
         r = self.residual(windups)
         if r is None:
             return -math.inf, math.inf, None, None
-        j, c, sig2, n = self._parts(jac, cov)
+        j, c, sig2 = self._parts(jac, cov)
+        n = j.shape[1] - len(self.points)
         jcj = j @ c @ j.T
         best = None
         for scale in SCALES:  # the samples' uncertainty scale, fitted per model (at least 1)
@@ -297,15 +272,11 @@ class RampLikelihood:
 
 
 def ramp_likelihood(runner, calibrated, points):
-    """(RampLikelihood, the calibrated model's windups) from the calibrated model's runs, its
-    coarse-discretisation check and the calibrated set moved up and down along each direction
-    the calibration cannot follow (2 + 2 x len(UNCALIBRATED) runs per ramp, one map)."""
-    moved = uncalibrated_systems(calibrated)
-    runs = run_ramp_sets(runner, [calibrated, coarse_system(calibrated), *(s for _, pair in moved for s in pair)],
-                         points)
-    base, coarse = runs[0], runs[1]
-    pairs = [(name, runs[2 + 2 * k:4 + 2 * k]) for k, (name, _) in enumerate(moved)]
-    return RampLikelihood(points, base, coarse, pairs), base
+    """(RampLikelihood, the calibrated model's windups) from the calibrated model's runs and
+    its coarse-discretisation check."""
+    base = run_ramps(runner, calibrated, points)
+    coarse = run_ramps(runner, coarse_system(calibrated), points)
+    return RampLikelihood(points, base, coarse), base
 
 
 def errors_and_traces(stages: dict, points) -> tuple:
@@ -326,6 +297,6 @@ def errors_and_traces(stages: dict, points) -> tuple:
 
 
 __all__ = ["RAMP_SAMPLE_HZ", "OFFSET_PRIOR_DEG", "WINDUP_FLOOR_DEG", "effective_share", "ramp_reference", "windup_noise",
-           "run_ramps", "run_ramp_sets",
+           "run_ramps",
            "RampLikelihood",
            "ramp_likelihood", "errors_and_traces"]

@@ -162,14 +162,12 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_DETECT_RUNS == len(EFFECTS["clutch_slip"].magnitudes)
     assert costs.DIAGNOSIS_DESIGN_RUNS >= len(design.DESIGN_SPEEDS) * len(design.DESIGN_TORQUES) * 5
     assert costs.DIAGNOSIS_DESIGN_S == pytest.approx(0.6 + design.DESIGN_RECORD)
-    # given, calibrated, coarse, the calibrated set moved up and down along each uncalibrated direction, six
-    # sensitivities, fits and pair with their magnitude sensitivities, the sized top
+    # given, calibrated, coarse, six sensitivities, fits and pair with their magnitude sensitivities, the sized top
     # and the sizing search of the top effect (bounded search + curvature) with its replay
     assert costs.DIAGNOSIS_RAMP_SIZING == 10 + 2
     # and the ramp-visible effects' detectability (three magnitudes each)
     assert costs.DIAGNOSIS_RAMP_DETECT == len(design.RAMP_PROTOCOLS) * len(EFFECTS["clutch_slip"].magnitudes)
-    assert costs.DIAGNOSIS_RAMP_RUNS == (3 + 2 * len(dg.UNCALIBRATED) + len(dg.CALIBRATION)
-                                        + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9)
+    assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9
     # 12 points: 8 training, 4 held out (every third)
     assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
                                            + 3 * 8 + 4 + 15 * 8 + 4 + 3 * 8 * 8)
