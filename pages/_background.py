@@ -22,7 +22,8 @@ through the registry instead, before any process exists:
   queue); cancel (or a newer call replacing an old one) detaches one waiter and ends the
   job only when nobody else waits for it;
 * a failing job stores :func:`dampersim.incidents.public_message` of its exception, never
-  a traceback; a job whose process died without a result is reported as failed.
+  a traceback; a job whose process died without a result is reported as failed. What runs
+  inside a job process, and how it starts, is :mod:`pages._job_process`.
 
 Sessions are signed cookies (:mod:`pages._sessions`): requests without a cookie, or with
 an unsigned or forged one, share one anonymous session. :func:`shutdown_jobs` terminates
@@ -35,39 +36,33 @@ from __future__ import annotations
 import atexit
 import hashlib
 import importlib
-import inspect
-import itertools
 import logging
 import multiprocessing
 import os
 import pickle
-import signal
 import sqlite3
 import threading
 import time
 from collections import OrderedDict
-from contextvars import copy_context
 
 import diskcache
 from dash import DiskcacheManager
 
 from dampersim.incidents import public_message, redact_paths
 from dampersim.jobs import ACTIVE, DONE, FAILED, QUEUED, JobRegistry
+from pages._job_process import KEY_PREFIX as _KEY_PREFIX
+from pages._job_process import RESULT_EXPIRE_S, _forkserver, _job_entry, _job_main, _JobFunction, job_environment
 from pages._sessions import (ANONYMOUS, SESSION_COOKIE, current_session, install_sessions, sign_session,
                              verified_session)
 
 LOGGER = logging.getLogger("dampersim.dashboard.jobs")
 
-#: Prefix of a job's keys in the result cache (result, progress, set_props).
-_KEY_PREFIX = "dampersim-job-"
 #: Seconds between two reaps by one server process (polls arrive every 0.3-1 s).
 REAP_INTERVAL_S = 1.0
 #: Seconds between two dispatch attempts by one server process.
 DISPATCH_INTERVAL_S = 0.2
 #: Seconds between two heartbeats of one waiter by one server process.
 HEARTBEAT_INTERVAL_S = 1.0
-#: Seconds a finished job's result stays in the cache when a waiter never collects it.
-RESULT_EXPIRE_S = 3600.0
 #: Message for a job whose process ended without storing a result.
 DIED_TEXT = ("the job stopped without a result (its process ended: killed, out of memory or crashed); "
              "press Run to try again")
@@ -88,161 +83,6 @@ def first_argument(args):
 def refused_error(message: str, _args=None) -> dict:
     """Default result of a refused submission: a background-callback error."""
     return {"background_callback_error": {"msg": message, "tb": ""}}
-
-
-# --------------------------------------------------------------------------- the job function
-class _JobFunction:
-    """The callback ``fn`` as run inside a job process: progress and ``set_props`` go to
-    the job's keys as ``(sequence, value)``, the result to the job's key; an exception is
-    stored as a one-line public message (no traceback, no server path)."""
-
-    def __init__(self, fn, progress):
-        self.fn = fn
-        self.progress = bool(progress)
-
-    def run(self, cache, job_id, args, context) -> bool:
-        from dash._callback_context import context_value
-        from dash._utils import AttributeDict
-        from dash.background_callback._proxy_set_props import ProxySetProps
-        from dash.exceptions import PreventUpdate
-
-        key = _KEY_PREFIX + job_id
-        counter = itertools.count(1)
-
-        def set_progress(value):
-            if not isinstance(value, (list, tuple)):
-                value = [value]
-            cache.set(key + "-progress", (next(counter), list(value)), expire=RESULT_EXPIRE_S)
-
-        def set_props(_id, props):
-            cache.set(key + "-set_props", (next(counter), {_id: props}), expire=RESULT_EXPIRE_S)
-
-        extra = [set_progress] if self.progress else []
-
-        def call():
-            c = AttributeDict(**context)
-            c.ignore_register_page = False
-            c.updated_props = ProxySetProps(set_props)
-            context_value.set(c)
-            if isinstance(args, dict):
-                out = self.fn(*extra, **args)
-            elif isinstance(args, (list, tuple)):
-                out = self.fn(*extra, *args)
-            else:
-                out = self.fn(*extra, args)
-            if inspect.iscoroutine(out):
-                import asyncio
-
-                out = asyncio.run(out)
-            return out
-
-        try:
-            result, ok = copy_context().run(call), True
-        except PreventUpdate:
-            result, ok = {"_dash_no_update": "_dash_no_update"}, True
-        except Exception as exc:  # noqa: BLE001 - every failure becomes a public message
-            result, ok = {"background_callback_error": {"msg": public_message(exc, "background job"), "tb": ""}}, False
-        try:
-            cache.set(key, result, expire=RESULT_EXPIRE_S)
-        except Exception as exc:  # noqa: BLE001 - e.g. an unpicklable result, a full disk
-            cache.set(key, {"background_callback_error": {"msg": public_message(exc, "background job result"),
-                                                          "tb": ""}}, expire=RESULT_EXPIRE_S)
-            ok = False
-        return ok
-
-
-def _job_main(job_fn, store_dir, registry, job_id, args, context):
-    """Entry point of a job process: own session and process group, default signal
-    handling, then run, store the result and tell the registry."""
-    os.setsid()
-    for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-        signal.signal(sig, signal.SIG_DFL)
-    cache = diskcache.Cache(store_dir)
-    ok = False
-    try:
-        ok = job_fn.run(cache, job_id, args, context)
-    finally:
-        cache.close()
-        registry.finish(job_id, ok)
-
-
-#: Modules the fork server imports once, so that a job process starts in a fraction of a
-#: second (it still builds the app, which opens no connection shared with the server).
-PRELOAD = ("numpy", "pandas", "scipy.signal", "numba", "plotly.graph_objects", "dash", "diskcache", "psutil",
-           "dampersim.views.sweeps", "dampersim.views.hysteresis", "dampersim.views.discrepancy",
-           "dampersim.views.segments", "dampersim.views.explorer", "dampersim.views.pulsation",
-           "dampersim.views.studies")
-
-
-#: Environment variables a job process takes from the server at the moment the job starts
-#: (the fork server keeps the environment it was started with).
-JOB_ENV_PREFIXES = ("DAMPERSIM_", "NUMBA_")
-
-
-def job_environment() -> dict:
-    """The server's settings a job must see: every ``DAMPERSIM_*`` and ``NUMBA_*`` variable."""
-    return {k: v for k, v in os.environ.items() if k.startswith(JOB_ENV_PREFIXES)}
-
-
-def _job_entry(blob, fn_key, app_module, store_dir, registry_folder, job_id, args, context, env=None):
-    """Entry point of a job process started by the fork server: a fresh interpreter, so it
-    carries no SQLite connection, lock or thread of the server (a process forked from the
-    threaded server inherits SQLite's view of locks other threads hold, and its first
-    cache write fails with "disk I/O error"). ``env``: the server's settings now
-    (:func:`job_environment`), replacing those the fork server started with. The job
-    function travels pickled when it can (a module-level function); when it cannot be
-    pickled, or loading it fails (a page module imports only inside the app), it is found
-    by its Dash key after importing ``app_module`` (which registers the callbacks)."""
-    if env is not None:
-        for key in [k for k in os.environ if k.startswith(JOB_ENV_PREFIXES) and k not in env]:
-            del os.environ[key]
-        os.environ.update(env)
-    job_fn = None
-    if blob is not None:
-        try:
-            job_fn = pickle.loads(blob)
-        except Exception:  # noqa: BLE001 - e.g. a page module that registers a page on import
-            job_fn = None
-    if job_fn is None:
-        job_fn = _registered_job_fn(fn_key, app_module)
-    _job_main(job_fn, store_dir, JobRegistry(registry_folder), job_id, args, context)
-
-
-def _registered_job_fn(fn_key, app_module):
-    from dash.background_callback.managers import BaseBackgroundCallbackManager as Base
-
-    def find():
-        for key, fn, progress in Base.functions:
-            if key == fn_key:
-                return _JobFunction(fn, progress)
-        return None
-
-    found = find()
-    if found is None and app_module:
-        importlib.import_module(app_module)
-        found = find()
-    if found is None:
-        raise LookupError(f"background callback {fn_key[:12]} is not defined by {app_module!r}")
-    return found
-
-
-_FORKSERVER = {"pid": None, "ctx": None}
-
-
-def _forkserver():
-    """The multiprocessing context of job processes: a fork server (an exec'd process with
-    :data:`PRELOAD` imported) forks each job. A process forked from one that already
-    started its fork server cannot use that server (it belongs to the parent): there,
-    job processes are spawned (a fresh interpreter each, about a second slower to start,
-    equally clean)."""
-    owner = _FORKSERVER["pid"]
-    if owner is not None and owner != os.getpid():
-        return multiprocessing.get_context("spawn")
-    if _FORKSERVER["ctx"] is None:
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(list(PRELOAD))
-        _FORKSERVER.update(pid=os.getpid(), ctx=ctx)
-    return _FORKSERVER["ctx"]
 
 
 def _slim_context(context) -> dict:
@@ -458,6 +298,9 @@ class JobQueueManager(DiskcacheManager):
             if (self.registry.waiter(info.waiter_id) or info).collected:  # read again: this waiter was answered
                 return _UNDEFINED  # (maybe by a poll in flight meanwhile) and the last collect removed the result
             state = self.registry.job_state(info.job_id)
+            if state in (DONE, FAILED):  # a job stores its result before it is marked finished: the job may
+                result = self.handle.get(_KEY_PREFIX + info.job_id, _UNDEFINED)  # have done both since the first read
+        if result is _UNDEFINED:
             if state == FAILED:
                 result = {"background_callback_error": {"msg": DIED_TEXT, "tb": ""}}
             elif state == DONE:  # finished, but its result was removed meanwhile (cache cleared)

@@ -300,6 +300,49 @@ def test_killed_job_process_is_reported_as_failed(manager_factory):
     assert "stopped without a result" in error["msg"] and error["tb"] == ""
 
 
+class _FinishesDuringTheRead:
+    """The result cache as a poll sees it when the job stores its result and is marked
+    finished just after the poll's first read of that result (the order a job process
+    uses: result first, then the registry)."""
+
+    def __init__(self, cache, registry, job_id, result, ok):
+        self._cache, self._registry, self._job, self._result, self._ok = cache, registry, job_id, result, ok
+        self.finished = False
+
+    def get(self, key, default=None):
+        value = self._cache.get(key, default)
+        if key == _background._KEY_PREFIX + self._job and not self.finished:
+            self.finished = True
+            self._cache.set(key, self._result)
+            self._registry.finish(self._job, self._ok)
+        return value
+
+    def __getattr__(self, name):
+        return getattr(self._cache, name)
+
+
+@pytest.mark.parametrize("ok, result", [(True, {"pid": 1, "tag": "stored"}),
+                                        (False, {"background_callback_error": {"msg": "bad input", "tb": ""}})])
+def test_a_job_that_finishes_during_a_poll_is_answered_with_its_result(manager_factory, monkeypatch, ok, result):
+    # the job "process" is a sleeping stand-in in its own session: the stand-in cache
+    # above stores the result and finishes the job; before the fix the poll answered
+    # "result no longer in the cache" (ok) or "stopped without a result" (failed)
+    manager = manager_factory(max_jobs=2, start_method="fork")
+    stand_in = subprocess.Popen(["sleep", "30"], start_new_session=True)
+    monkeypatch.setattr(manager, "_start", lambda job_id, payload: stand_in.pid)
+    try:
+        caller = Caller(manager, "sleep_and_return", {})
+        job_id = manager.registry.waiter(caller.job).job_id
+        assert manager.registry.job_state(job_id) not in ("done", "failed")
+        monkeypatch.setattr(manager, "handle", _FinishesDuringTheRead(manager.handle, manager.registry, job_id,
+                                                                      result, ok))
+        poll_all([caller], budget_s=5)
+        assert manager.handle.finished and caller.result == result
+    finally:
+        stand_in.kill()
+        stand_in.wait()
+
+
 def test_browser_never_gets_a_traceback_or_a_server_path(manager_factory):
     manager = manager_factory(max_jobs=2)
     caller = Caller(manager, "fail_with_a_path", {})
