@@ -1,0 +1,152 @@
+"""What a hysteresis ramp's misfit is made of, and what the calibration factors could do
+with the ramp alone.
+
+For each named case of the hard benchmark matrix (``bench/bench_discrepancy.py --list``;
+the campaign is synthesised exactly as that benchmark does, 12 torsional points of 1 s and
+one ramp), the ramp is replayed with the diagnosis's own drive (the recorded input torque,
+:func:`dampersim.discrepancy.drive.simulate_point`) and compared as the diagnosis compares
+it (:class:`dampersim.discrepancy.ramps.RampLikelihood`: 10 Hz low pass, 2 samples/s, each
+ramp's mean removed as its angle offset). Printed: the RMS misfit in degrees and in units of
+the median sample uncertainty, for
+
+* the truth driven by the recorded input torque (what the input channel's corruption alone
+  leaves), and by the truth's own clean input torque (the replay's own error);
+* the estimate (the library's default set, the diagnosis's starting point), the estimate
+  with each ``--magnitudes`` of ``--effect``, and the truth without its hidden effects;
+* then the same models after a Gauss-Newton fit of the six calibration factors
+  (:data:`dampersim.discrepancy.fitting.CALIBRATION`, log scale, within CAL_BOUND) to the
+  ramp alone: how far the ramp could separate the models if the factors were free to
+  follow it (the diagnosis fits them on the torsional points and lets the ramp move them
+  only within that fit's uncertainty).
+
+One case takes 10-15 minutes on 2 cores (the campaign's synthesis, then 7 ramp replays per
+iteration and model).
+
+    python bench/bench_ramp_misfit.py effect/output_backlash/strong/s0
+    python bench/bench_ramp_misfit.py control/calibration/2 --magnitudes 0.01 0.024
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import sys
+import tempfile
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
+
+from dampersim.discrepancy import drive, synth  # noqa: E402
+from dampersim.discrepancy.effects import NAMES, info, with_effect  # noqa: E402
+from dampersim.discrepancy.fitting import CAL_BOUND, CALIBRATION, calibrated_system  # noqa: E402
+from dampersim.discrepancy.ramps import RampLikelihood, run_ramps  # noqa: E402
+from dampersim.excitation import ramp_protocol  # noqa: E402
+from dampersim.parameters import default_parameters  # noqa: E402
+from dampersim.simulation import simulate  # noqa: E402
+
+#: log-factor step of the ramp's sensitivities (the diagnosis's longer step, 5 %), and iterations
+STEP = 0.05
+ITERATIONS = 4
+
+
+def truth_of(case):
+    """(truth system, hidden effects, updates) of a hard-matrix case, as synthesize draws them."""
+    spec = case["spec"]
+    effects = [(n, dict(v)) for n, v in spec["effects"]]
+    updates = dict(spec["updates"]) or None
+    truth, _ = synth.truth_system(default_parameters(), effects, case["perturb"],
+                                  np.random.default_rng(case["seed"]), updates)
+    without, _ = synth.truth_system(default_parameters(), [], case["perturb"],
+                                    np.random.default_rng(case["seed"]), updates)
+    return truth, without
+
+
+def clean_input(truth, point) -> np.ndarray:
+    """The truth's own input torque of the ramp [N m] on the record's time base (before the DAQ)."""
+    res = simulate(truth, ramp_protocol(synth.RAMP_PROTOCOL, point.speed), record_segments=False)
+    return np.interp(point.time, res.t - res.t[0], res.input_torque)
+
+
+def misfit(lik, windups) -> np.ndarray:
+    """The ramp residual in units of the median sample uncertainty, each ramp's mean removed."""
+    out, k = [], 0
+    r = lik.residual(windups)
+    for n in lik.lengths():
+        seg = r[k:k + n]
+        out.append(seg - seg.mean())
+        k += n
+    return np.concatenate(out) / np.median(np.concatenate(list(lik.sigma.values())))
+
+
+def ramp_calibration(runner, lik, system, ramps) -> tuple:
+    """Gauss-Newton on the six log calibration factors against the ramp residual alone:
+    (factors, RMS misfit in sample uncertainties) after ITERATIONS steps (a step that does not
+    lower the misfit ends the fit)."""
+    x = np.zeros(len(CALIBRATION))
+    r0 = misfit(lik, run_ramps(runner, calibrated_system(system, x), ramps))
+    for _ in range(ITERATIONS):
+        shifted = [calibrated_system(system, x + STEP * e) for e in np.eye(len(x))]
+        outs = runner.map([(drive.diagnosis_system(s), p) for s in shifted for p in ramps])
+        cols = []
+        for j in range(len(x)):
+            w = {p.id: outs[j * len(ramps) + i].get("windup") for i, p in enumerate(ramps)}
+            cols.append((misfit(lik, w) - r0) / STEP)
+        dx = np.linalg.lstsq(np.column_stack(cols), -r0, rcond=None)[0]
+        xn = np.clip(x + dx, -CAL_BOUND, CAL_BOUND)
+        rn = misfit(lik, run_ramps(runner, calibrated_system(system, xn), ramps))
+        if np.sqrt(np.mean(rn ** 2)) >= np.sqrt(np.mean(r0 ** 2)):
+            break
+        x, r0 = xn, rn
+    return x, float(np.sqrt(np.mean(r0 ** 2)))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("cases", nargs="*", default=["effect/output_backlash/strong/s0"],
+                    help="hard-matrix case ids (default effect/output_backlash/strong/s0)")
+    ap.add_argument("--effect", default="output_backlash", choices=NAMES, help="effect added to the estimate")
+    ap.add_argument("--magnitudes", type=float, nargs="+", default=[0.024, 0.06],
+                    help="magnitudes of --effect, in its unit (default 0.024 0.06: free play [rad])")
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args(argv)
+    matrix = S.named_cases(ap, a.cases)
+    for cid in a.cases:
+        case = matrix[cid]
+        with tempfile.TemporaryDirectory() as d:
+            ramps = list(S.campaign_of(case, os.path.join(d, "campaign"), a.workers).ramps)
+        truth, without = truth_of(case)
+        print(f"{cid}: hidden {case['spec']['effects']}, {len(ramps)} ramp(s)", flush=True)
+        est = default_parameters()
+        models = {"estimate": est, **{f"estimate + {a.effect} {m:g}": with_effect(est, a.effect,
+                                                                                    {info(a.effect).magnitude: m})
+                                      for m in a.magnitudes},
+                  "truth without its hidden effects": without}
+        with drive.Runner(a.workers) as runner:
+            base = run_ramps(runner, truth, ramps)
+            lik = RampLikelihood(ramps, base, base)  # the channel noise and floor only
+            sig = np.degrees(np.median(np.concatenate(list(lik.sigma.values()))))
+            print(f"  median sample uncertainty {sig:.4f} deg ({lik.residuals} samples)")
+
+            def show(label, r):
+                rms = float(np.sqrt(np.mean(r ** 2)))
+                print(f"  {label:48s} RMS {rms * sig:7.4f} deg = {rms:6.1f} sigma", flush=True)
+
+            show("truth, recorded input", misfit(lik, base))
+            clean = [dataclasses.replace(p, input_torque=clean_input(truth, p)) for p in ramps]
+            show("truth, its clean input", misfit(lik, {p.id: w for p, w in
+                                                        zip(ramps, run_ramps(runner, truth, clean).values())}))
+            for label, system in models.items():
+                show(label, misfit(lik, run_ramps(runner, system, ramps)))
+            for label, system in models.items():
+                x, rms = ramp_calibration(runner, lik, system, ramps)
+                print(f"  {label:48s} factors fitted to the ramp {np.round(x, 3).tolist()}: "
+                      f"RMS {rms * sig:7.4f} deg = {rms:6.1f} sigma", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
