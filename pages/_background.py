@@ -295,22 +295,29 @@ class JobQueueManager(DiskcacheManager):
         self._tick()
         result = self.handle.get(_KEY_PREFIX + info.job_id, _UNDEFINED)
         if result is _UNDEFINED:
-            if (self.registry.waiter(info.waiter_id) or info).collected:  # read again: this waiter was answered
-                return _UNDEFINED  # (maybe by a poll in flight meanwhile) and the last collect removed the result
+            if self._answered(info):
+                return _UNDEFINED
             state = self.registry.job_state(info.job_id)
-            if state in (DONE, FAILED):  # a job stores its result before it is marked finished: the job may
-                result = self.handle.get(_KEY_PREFIX + info.job_id, _UNDEFINED)  # have done both since the first read
+            if state not in (DONE, FAILED):
+                return _UNDEFINED
+            # a job stores its result before it is marked finished: it may have done both since the first read
+            result = self.handle.get(_KEY_PREFIX + info.job_id, _UNDEFINED)
+            if result is _UNDEFINED and self._answered(info):  # a poll in flight collected it meanwhile
+                return _UNDEFINED
         if result is _UNDEFINED:
             if state == FAILED:
                 result = {"background_callback_error": {"msg": DIED_TEXT, "tb": ""}}
-            elif state == DONE:  # finished, but its result was removed meanwhile (cache cleared)
+            else:  # finished, but its result was removed meanwhile (cache cleared)
                 result = {"background_callback_error": {"msg": GONE_TEXT, "tb": ""}}
-            else:
-                return _UNDEFINED
         if self.registry.collect(info.waiter_id):
             for suffix in ("", "-progress", "-set_props"):
                 self.handle.delete(_KEY_PREFIX + info.job_id + suffix)
         return _sanitise(result)
+
+    def _answered(self, info) -> bool:
+        """Whether this waiter was answered, read again from the registry: a poll in flight may
+        have collected its result since ``info`` was read, and the last collect removes it."""
+        return (self.registry.waiter(info.waiter_id) or info).collected
 
     def get_progress(self, key):
         info = self._waiter(key)

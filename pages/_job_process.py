@@ -1,11 +1,13 @@
 """What runs inside a job process of the dashboard's job queue, and how that process starts.
 
 A job process is forked by a fork server (an exec'd interpreter with :data:`PRELOAD`
-imported) or, in a process that cannot use that server, spawned. It runs the callback
-function, writes progress, ``set_props`` and the result under the job's keys of the
-result cache (:data:`KEY_PREFIX`), and only then tells the job registry that the job has
-finished: a reader that sees the job finished and reads the cache afterwards finds the
-result (see :meth:`pages._background.JobQueueManager.get_result`).
+imported) or, in a process that cannot use that server, spawned; with the manager's
+``start_method="fork"`` (a test's own app, a process that holds no SQLite connection in
+another thread) it is forked from the server process itself and runs :func:`_job_main`
+directly. It runs the callback function, writes progress, ``set_props`` and the result
+under the job's keys of the result cache (:data:`KEY_PREFIX`), and only then tells the job
+registry that the job has finished: a reader that sees the job finished and reads the
+cache afterwards finds the result (see :meth:`pages._background.JobQueueManager.get_result`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from dampersim.jobs import JobRegistry
 KEY_PREFIX = "dampersim-job-"
 #: Seconds a finished job's result stays in the cache when a waiter never collects it.
 RESULT_EXPIRE_S = 3600.0
+
 
 class _JobFunction:
     """The callback ``fn`` as run inside a job process: progress and ``set_props`` go to

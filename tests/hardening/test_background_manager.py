@@ -343,6 +343,52 @@ def test_a_job_that_finishes_during_a_poll_is_answered_with_its_result(manager_f
         stand_in.wait()
 
 
+class _CollectedDuringTheSecondRead:
+    """The result cache as a poll sees it when the job stores its result and finishes just
+    after the poll's first read, and another poll of the same waiter, already in flight,
+    collects that result (and, as the last waiter, removes it) just before this poll reads
+    it again."""
+
+    def __init__(self, cache, registry, job_id, waiter_id):
+        self._cache, self._registry, self._job, self._waiter = cache, registry, job_id, waiter_id
+        self.reads = 0
+
+    def get(self, key, default=None):
+        if key == _background._KEY_PREFIX + self._job:
+            self.reads += 1
+            if self.reads == 1:  # the first read misses; then the job stores its result and finishes
+                value = self._cache.get(key, default)
+                self._cache.set(key, {"pid": 1, "tag": "stored"})
+                self._registry.finish(self._job, True)
+                return value
+            if self.reads == 2:  # the poll in flight answers the waiter and removes the result
+                assert self._registry.collect(self._waiter)
+                self._cache.delete(key)
+        return self._cache.get(key, default)
+
+    def __getattr__(self, name):
+        return getattr(self._cache, name)
+
+
+def test_a_result_collected_by_a_poll_in_flight_during_the_second_read_gives_no_error(manager_factory, monkeypatch):
+    # the other poll answered the tab; this one must leave that answer alone (no update)
+    # rather than report the result as cleared from the cache
+    manager = manager_factory(max_jobs=2, start_method="fork")
+    stand_in = subprocess.Popen(["sleep", "30"], start_new_session=True)
+    monkeypatch.setattr(manager, "_start", lambda job_id, payload: stand_in.pid)
+    try:
+        caller = Caller(manager, "sleep_and_return", {})
+        job_id = manager.registry.waiter(caller.job).job_id
+        monkeypatch.setattr(manager, "handle", _CollectedDuringTheSecondRead(manager.handle, manager.registry, job_id,
+                                                                             caller.job))
+        with caller._request():
+            answer = manager.get_result(caller.key, caller.job)
+        assert manager.handle.reads == 2 and answer is manager.UNDEFINED
+    finally:
+        stand_in.kill()
+        stand_in.wait()
+
+
 def test_browser_never_gets_a_traceback_or_a_server_path(manager_factory):
     manager = manager_factory(max_jobs=2)
     caller = Caller(manager, "fail_with_a_path", {})
