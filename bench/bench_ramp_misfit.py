@@ -19,10 +19,14 @@ the median sample uncertainty, for
   follow it (the diagnosis fits them on the torsional points and lets the ramp move them
   only within that fit's uncertainty).
 
-One case takes 10-15 minutes on 2 cores (the campaign's synthesis, then 7 ramp replays per
-iteration and model).
+With ``--torsional`` the diagnosis's own compare and calibration steps run first (stopped
+where they hand over to the naming step), and each model's calibration objective on the
+training points is printed at the estimate's factors, the calibrated factors and the
+factors fitted to the ramp, with the ramp misfit at the calibrated factors: whether one set
+of the six factors can fit the ramp and the torsional points together.
 
     python bench/bench_ramp_misfit.py effect/output_backlash/strong/s0
+    python bench/bench_ramp_misfit.py effect/output_backlash/strong/s0 control/calibration/2 --torsional
     python bench/bench_ramp_misfit.py control/calibration/2 --magnitudes 0.01 0.024
 """
 
@@ -40,9 +44,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
 
+from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive, synth  # noqa: E402
 from dampersim.discrepancy.effects import NAMES, info, with_effect  # noqa: E402
-from dampersim.discrepancy.fitting import CAL_BOUND, CALIBRATION, calibrated_system  # noqa: E402
+from dampersim.discrepancy.fitting import CAL_BOUND, CALIBRATION, PRIOR_LOG_SD, calibrated_system  # noqa: E402
 from dampersim.discrepancy.ramps import RampLikelihood, run_ramps  # noqa: E402
 from dampersim.excitation import ramp_protocol  # noqa: E402
 from dampersim.parameters import default_parameters  # noqa: E402
@@ -54,7 +59,8 @@ ITERATIONS = 4
 
 
 def truth_of(case):
-    """(truth system, hidden effects, updates) of a hard-matrix case, as synthesize draws them."""
+    """(truth system, the same truth without its hidden effects) of a hard-matrix case, both
+    drawn as synthesize draws them (same seed, perturbation and updates)."""
     spec = case["spec"]
     effects = [(n, dict(v)) for n, v in spec["effects"]]
     updates = dict(spec["updates"]) or None
@@ -71,10 +77,13 @@ def clean_input(truth, point) -> np.ndarray:
     return np.interp(point.time, res.t - res.t[0], res.input_torque)
 
 
-def misfit(lik, windups) -> np.ndarray:
-    """The ramp residual in units of the median sample uncertainty, each ramp's mean removed."""
+def misfit(lik, windups):
+    """The ramp residual in units of the median sample uncertainty, each ramp's mean removed
+    (None when a replay failed: a failed run is reported, never compared)."""
     out, k = [], 0
     r = lik.residual(windups)
+    if r is None:
+        return None
     for n in lik.lengths():
         seg = r[k:k + n]
         out.append(seg - seg.mean())
@@ -82,26 +91,75 @@ def misfit(lik, windups) -> np.ndarray:
     return np.concatenate(out) / np.median(np.concatenate(list(lik.sigma.values())))
 
 
+def rms(r) -> float:
+    """Root mean square of a residual (NaN for a failed replay)."""
+    return float("nan") if r is None else float(np.sqrt(np.mean(r ** 2)))
+
+
+class _Stop(Exception):
+    """Raised by the spy once the diagnosis has calibrated."""
+
+
+def torsional_of(campaign, workers: int) -> dict:
+    """The diagnosis's own torsional likelihood, training rows and points and its calibrated
+    factors: the diagnosis (no next-test design) runs its compare and calibration steps and is
+    stopped where it hands them to the naming step."""
+    seen = {}
+    real = dg.Namer
+
+    def spy(runner, lik, train, points, jac, starts, failures):
+        seen.update(lik=lik, train=train, points=points, x=np.asarray(starts["calibrated"][1], dtype=float))
+        raise _Stop
+
+    dg.Namer = spy
+    try:
+        dg.diagnose(campaign, workers=workers, recommend=False)
+    except _Stop:
+        pass
+    finally:
+        dg.Namer = real
+    if not seen:
+        raise SystemExit("the diagnosis stopped before its calibration (see its verdict): no torsional comparison")
+    return seen
+
+
+def torsional_cost(runner, tors, system, x) -> float:
+    """The calibration's objective (robust loss on the training points with the channels'
+    gain and delay fitted, plus the factors' prior) of ``system`` at log factors ``x``, as the
+    diagnosis computes it; NaN when a run failed."""
+    errs = {}
+    y = drive.coefficients_of(runner, calibrated_system(system, x), tors["points"], errs)
+    if errs:
+        return float("nan")
+    return tors["lik"].profile(y, tors["train"])[0] + float(np.sum(np.asarray(x) ** 2)) / PRIOR_LOG_SD ** 2
+
+
 def ramp_calibration(runner, lik, system, ramps) -> tuple:
     """Gauss-Newton on the six log calibration factors against the ramp residual alone:
     (factors, RMS misfit in sample uncertainties) after ITERATIONS steps (a step that does not
-    lower the misfit ends the fit)."""
+    lower the misfit ends the fit). Each sensitivity step stays within CAL_BOUND (it goes the
+    other way at the upper bound); a sensitivity whose replay failed is a zero column, so that
+    factor does not move. (factors, NaN) when the model's own replay fails."""
     x = np.zeros(len(CALIBRATION))
     r0 = misfit(lik, run_ramps(runner, calibrated_system(system, x), ramps))
+    if r0 is None:
+        return x, float("nan")
     for _ in range(ITERATIONS):
-        shifted = [calibrated_system(system, x + STEP * e) for e in np.eye(len(x))]
+        steps = np.where(x + STEP <= CAL_BOUND, STEP, -STEP)
+        shifted = [calibrated_system(system, x + h * e) for h, e in zip(steps, np.eye(len(x)))]
         outs = runner.map([(drive.diagnosis_system(s), p) for s in shifted for p in ramps])
         cols = []
-        for j in range(len(x)):
+        for j, h in enumerate(steps):
             w = {p.id: outs[j * len(ramps) + i].get("windup") for i, p in enumerate(ramps)}
-            cols.append((misfit(lik, w) - r0) / STEP)
+            r = misfit(lik, w)
+            cols.append(np.zeros_like(r0) if r is None else (r - r0) / h)
         dx = np.linalg.lstsq(np.column_stack(cols), -r0, rcond=None)[0]
         xn = np.clip(x + dx, -CAL_BOUND, CAL_BOUND)
         rn = misfit(lik, run_ramps(runner, calibrated_system(system, xn), ramps))
-        if np.sqrt(np.mean(rn ** 2)) >= np.sqrt(np.mean(r0 ** 2)):
+        if rn is None or rms(rn) >= rms(r0):
             break
         x, r0 = xn, rn
-    return x, float(np.sqrt(np.mean(r0 ** 2)))
+    return x, rms(r0)
 
 
 def main(argv=None):
@@ -111,13 +169,19 @@ def main(argv=None):
     ap.add_argument("--effect", default="output_backlash", choices=NAMES, help="effect added to the estimate")
     ap.add_argument("--magnitudes", type=float, nargs="+", default=[0.024, 0.06],
                     help="magnitudes of --effect, in its unit (default 0.024 0.06: free play [rad])")
+    ap.add_argument("--torsional", action="store_true",
+                    help="also run the diagnosis's compare and calibration steps and print each model's "
+                         "torsional objective at the estimate's factors, the calibrated factors and the "
+                         "factors fitted to the ramp (whether one set of factors can fit both)")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     matrix = S.named_cases(ap, a.cases)
     for cid in a.cases:
         case = matrix[cid]
         with tempfile.TemporaryDirectory() as d:
-            ramps = list(S.campaign_of(case, os.path.join(d, "campaign"), a.workers).ramps)
+            camp = S.campaign_of(case, os.path.join(d, "campaign"), a.workers)
+        ramps = list(camp.ramps)
+        tors = torsional_of(camp, a.workers) if a.torsional else None
         truth, without = truth_of(case)
         print(f"{cid}: hidden {case['spec']['effects']}, {len(ramps)} ramp(s)", flush=True)
         est = default_parameters()
@@ -132,8 +196,10 @@ def main(argv=None):
             print(f"  median sample uncertainty {sig:.4f} deg ({lik.residuals} samples)")
 
             def show(label, r):
-                rms = float(np.sqrt(np.mean(r ** 2)))
-                print(f"  {label:48s} RMS {rms * sig:7.4f} deg = {rms:6.1f} sigma", flush=True)
+                if r is None:
+                    print(f"  {label:48s} the replay failed", flush=True)
+                else:
+                    print(f"  {label:48s} RMS {rms(r) * sig:7.4f} deg = {rms(r):6.1f} sigma", flush=True)
 
             show("truth, recorded input", misfit(lik, base))
             clean = [dataclasses.replace(p, input_torque=clean_input(truth, p)) for p in ramps]
@@ -141,10 +207,23 @@ def main(argv=None):
                                                         zip(ramps, run_ramps(runner, truth, clean).values())}))
             for label, system in models.items():
                 show(label, misfit(lik, run_ramps(runner, system, ramps)))
+            fitted = {}
             for label, system in models.items():
-                x, rms = ramp_calibration(runner, lik, system, ramps)
+                x, e = ramp_calibration(runner, lik, system, ramps)
+                fitted[label] = x
                 print(f"  {label:48s} factors fitted to the ramp {np.round(x, 3).tolist()}: "
-                      f"RMS {rms * sig:7.4f} deg = {rms:6.1f} sigma", flush=True)
+                      f"RMS {e * sig:7.4f} deg = {e:6.1f} sigma", flush=True)
+            if tors is not None:
+                cells = 2 * len(tors["train"]) * len(drive.ORDERS)
+                print(f"  torsional objective on {len(tors['train'])} training points ({cells} real residuals), "
+                      f"calibrated factors {np.round(tors['x'], 3).tolist()}")
+                for label, system in models.items():
+                    costs = [torsional_cost(runner, tors, system, x)
+                             for x in (np.zeros(len(CALIBRATION)), tors["x"], fitted[label])]
+                    at_cal = misfit(lik, run_ramps(runner, calibrated_system(system, tors["x"]), ramps))
+                    print(f"  {label:48s} objective at estimate {costs[0]:9.1f}, calibrated {costs[1]:9.1f}, "
+                          f"fitted to the ramp {costs[2]:9.1f}; ramp at the calibrated factors "
+                          f"{rms(at_cal):6.1f} sigma", flush=True)
     return 0
 
 
