@@ -44,7 +44,6 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
 
-from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive, synth  # noqa: E402
 from dampersim.discrepancy.effects import NAMES, info, with_effect  # noqa: E402
 from dampersim.discrepancy.fitting import CAL_BOUND, CALIBRATION, PRIOR_LOG_SD, calibrated_system  # noqa: E402
@@ -96,28 +95,16 @@ def rms(r) -> float:
     return float("nan") if r is None else float(np.sqrt(np.mean(r ** 2)))
 
 
-class _Stop(Exception):
-    """Raised by the spy once the diagnosis has calibrated."""
-
-
 def torsional_of(campaign, workers: int) -> dict:
     """The diagnosis's own torsional likelihood, training rows and points and its calibrated
     factors: the diagnosis (no next-test design) runs its compare and calibration steps and is
     stopped where it hands them to the naming step."""
     seen = {}
-    real = dg.Namer
 
-    def spy(runner, lik, train, points, jac, starts, failures):
+    def capture(runner, lik, train, points, jac, starts, failures):
         seen.update(lik=lik, train=train, points=points, x=np.asarray(starts["calibrated"][1], dtype=float))
-        raise _Stop
 
-    dg.Namer = spy
-    try:
-        dg.diagnose(campaign, workers=workers, recommend=False)
-    except _Stop:
-        pass
-    finally:
-        dg.Namer = real
+    S.diagnose_until(campaign, workers, "Namer", capture)
     if not seen:
         raise SystemExit("the diagnosis stopped before its calibration (see its verdict): no torsional comparison")
     return seen

@@ -41,7 +41,7 @@ from dampersim.discrepancy.synth import synthesize  # noqa: E402
 
 
 class _Stop(Exception):
-    """Raised by the spy once the compare step has handed over its terms."""
+    """Raised by the spy of :func:`diagnose_until` once the diagnosis has made the call watched."""
 
 
 def campaign_of(case, folder, workers: int):
@@ -61,22 +61,29 @@ def named_cases(ap, ids) -> dict:
     return matrix
 
 
-def terms_of(camp, workers: int) -> dict:
-    """The variances diagnose's compare step passes to cell_sigma, by term."""
-    seen = {}
-    real = dg.cell_sigma
+def diagnose_until(camp, workers: int, name: str, capture) -> None:
+    """Run the diagnosis of ``camp`` (no next-test design) until it calls ``name`` of
+    :mod:`dampersim.discrepancy.diagnose`: ``capture`` gets that call's arguments, then the
+    diagnosis stops (it returns normally when it ends before that call, e.g. not diagnosed)."""
+    real = getattr(dg, name)
 
     def spy(*args, **kwargs):
-        seen.update(likelihood.sigma_variances(*args, **kwargs))
+        capture(*args, **kwargs)
         raise _Stop
 
-    dg.cell_sigma = spy
+    setattr(dg, name, spy)
     try:
         dg.diagnose(camp, workers=workers, recommend=False)
     except _Stop:
         pass
     finally:
-        dg.cell_sigma = real
+        setattr(dg, name, real)
+
+
+def terms_of(camp, workers: int) -> dict:
+    """The variances diagnose's compare step passes to cell_sigma, by term."""
+    seen = {}
+    diagnose_until(camp, workers, "cell_sigma", lambda *a, **k: seen.update(likelihood.sigma_variances(*a, **k)))
     return seen
 
 

@@ -13,6 +13,7 @@ stand-in for the dashboard's resolver, which reads the work key stored with a ti
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import multiprocessing
 import os
@@ -300,6 +301,21 @@ def test_killed_job_process_is_reported_as_failed(manager_factory):
     assert "stopped without a result" in error["msg"] and error["tb"] == ""
 
 
+@contextlib.contextmanager
+def _job_of_a_stand_in_process(manager_factory, monkeypatch):
+    """(manager, caller, job id) of one job whose "process" is a sleeping stand-in in its own
+    session, so that a test decides when the job stores its result and finishes."""
+    manager = manager_factory(max_jobs=2, start_method="fork")
+    stand_in = subprocess.Popen(["sleep", "30"], start_new_session=True)
+    monkeypatch.setattr(manager, "_start", lambda job_id, payload: stand_in.pid)
+    try:
+        caller = Caller(manager, "sleep_and_return", {})
+        yield manager, caller, manager.registry.waiter(caller.job).job_id
+    finally:
+        stand_in.kill()
+        stand_in.wait()
+
+
 class _FinishesDuringTheRead:
     """The result cache as a poll sees it when the job stores its result and is marked
     finished just after the poll's first read of that result (the order a job process
@@ -327,20 +343,12 @@ def test_a_job_that_finishes_during_a_poll_is_answered_with_its_result(manager_f
     # the job "process" is a sleeping stand-in in its own session: the stand-in cache
     # above stores the result and finishes the job; before the fix the poll answered
     # "result no longer in the cache" (ok) or "stopped without a result" (failed)
-    manager = manager_factory(max_jobs=2, start_method="fork")
-    stand_in = subprocess.Popen(["sleep", "30"], start_new_session=True)
-    monkeypatch.setattr(manager, "_start", lambda job_id, payload: stand_in.pid)
-    try:
-        caller = Caller(manager, "sleep_and_return", {})
-        job_id = manager.registry.waiter(caller.job).job_id
+    with _job_of_a_stand_in_process(manager_factory, monkeypatch) as (manager, caller, job_id):
         assert manager.registry.job_state(job_id) not in ("done", "failed")
         monkeypatch.setattr(manager, "handle", _FinishesDuringTheRead(manager.handle, manager.registry, job_id,
                                                                       result, ok))
         poll_all([caller], budget_s=5)
         assert manager.handle.finished and caller.result == result
-    finally:
-        stand_in.kill()
-        stand_in.wait()
 
 
 class _CollectedDuringTheSecondRead:
@@ -373,20 +381,12 @@ class _CollectedDuringTheSecondRead:
 def test_a_result_collected_by_a_poll_in_flight_during_the_second_read_gives_no_error(manager_factory, monkeypatch):
     # the other poll answered the tab; this one must leave that answer alone (no update)
     # rather than report the result as cleared from the cache
-    manager = manager_factory(max_jobs=2, start_method="fork")
-    stand_in = subprocess.Popen(["sleep", "30"], start_new_session=True)
-    monkeypatch.setattr(manager, "_start", lambda job_id, payload: stand_in.pid)
-    try:
-        caller = Caller(manager, "sleep_and_return", {})
-        job_id = manager.registry.waiter(caller.job).job_id
+    with _job_of_a_stand_in_process(manager_factory, monkeypatch) as (manager, caller, job_id):
         monkeypatch.setattr(manager, "handle", _CollectedDuringTheSecondRead(manager.handle, manager.registry, job_id,
                                                                              caller.job))
         with caller._request():
             answer = manager.get_result(caller.key, caller.job)
         assert manager.handle.reads == 2 and answer is manager.UNDEFINED
-    finally:
-        stand_in.kill()
-        stand_in.wait()
 
 
 def test_browser_never_gets_a_traceback_or_a_server_path(manager_factory):
