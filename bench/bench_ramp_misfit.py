@@ -126,11 +126,11 @@ def ramp_calibration(runner, lik, system, ramps) -> tuple:
     (factors, RMS misfit in sample uncertainties) after ITERATIONS steps (a step that does not
     lower the misfit ends the fit). Each sensitivity step stays within CAL_BOUND (it goes the
     other way at the upper bound); a sensitivity whose replay failed is a zero column, so that
-    factor does not move. (factors, NaN) when the model's own replay fails."""
+    factor does not move. (None, NaN) when the model's own replay fails."""
     x = np.zeros(len(CALIBRATION))
     r0 = misfit(lik, run_ramps(runner, calibrated_system(system, x), ramps))
     if r0 is None:
-        return x, float("nan")
+        return None, float("nan")
     for _ in range(ITERATIONS):
         steps = np.where(x + STEP <= CAL_BOUND, STEP, -STEP)
         shifted = [calibrated_system(system, x + h * e) for h, e in zip(steps, np.eye(len(x)))]
@@ -198,6 +198,9 @@ def main(argv=None):
             for label, system in models.items():
                 x, e = ramp_calibration(runner, lik, system, ramps)
                 fitted[label] = x
+                if x is None:
+                    print(f"  {label:48s} not fitted to the ramp: its replay failed", flush=True)
+                    continue
                 print(f"  {label:48s} factors fitted to the ramp {np.round(x, 3).tolist()}: "
                       f"RMS {e * sig:7.4f} deg = {e:6.1f} sigma", flush=True)
             if tors is not None:
@@ -205,7 +208,7 @@ def main(argv=None):
                 print(f"  torsional objective on {len(tors['train'])} training points ({cells} real residuals), "
                       f"calibrated factors {np.round(tors['x'], 3).tolist()}")
                 for label, system in models.items():
-                    costs = [torsional_cost(runner, tors, system, x)
+                    costs = [float("nan") if x is None else torsional_cost(runner, tors, system, x)
                              for x in (np.zeros(len(CALIBRATION)), tors["x"], fitted[label])]
                     at_cal = misfit(lik, run_ramps(runner, calibrated_system(system, tors["x"]), ramps))
                     print(f"  {label:48s} objective at estimate {costs[0]:9.1f}, calibrated {costs[1]:9.1f}, "

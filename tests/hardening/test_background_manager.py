@@ -389,6 +389,17 @@ def test_a_result_collected_by_a_poll_in_flight_during_the_second_read_gives_no_
         assert manager.handle.reads == 2 and answer is manager.UNDEFINED
 
 
+@pytest.mark.parametrize("ok, text", [(True, _background.GONE_TEXT), (False, _background.DIED_TEXT)])
+def test_a_finished_job_whose_result_is_really_gone_is_answered_with_an_error(manager_factory, monkeypatch, ok, text):
+    # the counterpart of the two races above: a waiter never answered, its job finished and
+    # its result missing (cache cleared, or the job died before storing it) gets the error
+    with _job_of_a_stand_in_process(manager_factory, monkeypatch) as (manager, caller, job_id):
+        manager.registry.finish(job_id, ok)
+        with caller._request():
+            answer = manager.get_result(caller.key, caller.job)
+        assert answer == {"background_callback_error": {"msg": text, "tb": ""}}
+
+
 def test_browser_never_gets_a_traceback_or_a_server_path(manager_factory):
     manager = manager_factory(max_jobs=2)
     caller = Caller(manager, "fail_with_a_path", {})
