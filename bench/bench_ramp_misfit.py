@@ -76,6 +76,11 @@ def clean_input(truth, point) -> np.ndarray:
     return np.interp(point.time, res.t - res.t[0], res.input_torque)
 
 
+def unit(lik) -> float:
+    """The median sample uncertainty [rad] of the ramps: the unit misfits are printed in."""
+    return float(np.median(np.concatenate(list(lik.sigma.values()))))
+
+
 def misfit(lik, windups):
     """The ramp residual in units of the median sample uncertainty, each ramp's mean removed
     (None when a replay failed: a failed run is reported, never compared)."""
@@ -87,7 +92,7 @@ def misfit(lik, windups):
         seg = r[k:k + n]
         out.append(seg - seg.mean())
         k += n
-    return np.concatenate(out) / np.median(np.concatenate(list(lik.sigma.values())))
+    return np.concatenate(out) / unit(lik)
 
 
 def rms(r) -> float:
@@ -179,7 +184,7 @@ def main(argv=None):
         with drive.Runner(a.workers) as runner:
             base = run_ramps(runner, truth, ramps)
             lik = RampLikelihood(ramps, base, base)  # the channel noise and floor only
-            sig = np.degrees(np.median(np.concatenate(list(lik.sigma.values()))))
+            sig = np.degrees(unit(lik))
             print(f"  median sample uncertainty {sig:.4f} deg ({lik.residuals} samples)")
 
             def show(label, r):

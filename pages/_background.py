@@ -302,13 +302,11 @@ class JobQueueManager(DiskcacheManager):
                 return _UNDEFINED
             # a job stores its result before it is marked finished: it may have done both since the first read
             result = self.handle.get(_KEY_PREFIX + info.job_id, _UNDEFINED)
-            if result is _UNDEFINED and self._answered(info):  # a poll in flight collected it meanwhile
-                return _UNDEFINED
-        if result is _UNDEFINED:
-            if state == FAILED:
-                result = {"background_callback_error": {"msg": DIED_TEXT, "tb": ""}}
-            else:  # finished, but its result was removed meanwhile (cache cleared)
-                result = {"background_callback_error": {"msg": GONE_TEXT, "tb": ""}}
+            if result is _UNDEFINED:
+                if self._answered(info):  # a poll in flight collected it meanwhile
+                    return _UNDEFINED
+                # finished without a result (died), or its result was removed meanwhile (cache cleared)
+                result = {"background_callback_error": {"msg": DIED_TEXT if state == FAILED else GONE_TEXT, "tb": ""}}
         if self.registry.collect(info.waiter_id):
             for suffix in ("", "-progress", "-set_props"):
                 self.handle.delete(_KEY_PREFIX + info.job_id + suffix)
