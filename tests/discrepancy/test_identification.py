@@ -4,8 +4,10 @@ Each campaign is synthesised from a truth that differs from the diagnosed model 
 rig does (estimated parameters perturbed by up to 3 %, finer springs and step, sensor noise,
 channel gain errors and, for the absorber case, a random DAQ chain with skew, hum, offsets,
 drift and anti-alias filtering). Nine mapping points of 0.8 s, three candidates, torsional
-points only: about 135 s per diagnosis on two cores, 280 s on the one core `make test` gives
-them beside the rest of the suite. These tests are strict:
+points only: the module takes 214 s run alone on two cores (105 and 107 s per campaign,
+synthesis and diagnosis), 235 s with the kernel compiled afresh (`python -m pytest
+tests/discrepancy/test_identification.py --durations=5`, commit f97270c); `make test` gives
+them one core beside the rest of the suite. These tests are strict:
 a change that stops the method naming the absorber as the most probable model with its
 magnitude, or that makes it name an effect in a clean campaign, fails here. The full
 benchmark lives in bench/bench_discrepancy.py.
