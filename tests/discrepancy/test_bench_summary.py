@@ -1,9 +1,7 @@
 """The discrepancy benchmark: its figures from hand-written JSON lines, its case matrix,
 its truths and its resumable output (no diagnosis is run)."""
 
-import importlib.util
 import json
-import pathlib
 
 import numpy as np
 import pytest
@@ -14,16 +12,12 @@ from dampersim.discrepancy.effects import EFFECTS, NAMES, parameters_of
 from dampersim.discrepancy.synth import truth_system
 from dampersim.errors import InputError
 from dampersim.parameters import default_parameters
-
-BENCH = pathlib.Path(__file__).resolve().parents[2] / "bench" / "bench_discrepancy.py"
+from tests.discrepancy.benches import load_bench
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_discrepancy", BENCH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("bench_discrepancy")
 
 
 def truth(*effects):

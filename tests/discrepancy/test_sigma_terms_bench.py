@@ -1,25 +1,20 @@
 """The held-out misfit breakdown of bench/bench_sigma_terms.py, on hand-made arrays (no
 diagnosis is run): the figures docs/discrepancy.md quotes from it rest on these two functions."""
 
-import importlib.util
 import math
-import pathlib
 
 import numpy as np
 import pytest
 
 from dampersim.discrepancy.likelihood import Likelihood
+from tests.discrepancy.benches import load_bench
 
-BENCH = pathlib.Path(__file__).resolve().parents[2] / "bench" / "bench_sigma_terms.py"
 TERMS = ("repeat", "model", "mains", "input", "uncalibrated", "floor")
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_sigma_terms", BENCH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("bench_sigma_terms")
 
 
 def case(seed=0, n=9, k=8):
