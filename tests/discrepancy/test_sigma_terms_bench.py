@@ -1,15 +1,15 @@
 """The held-out misfit breakdown of bench/bench_sigma_terms.py, on hand-made arrays (no
-diagnosis is run): the figures docs/discrepancy.md quotes from it rest on these two functions."""
-
-import math
+diagnosis is run): the figures docs/discrepancy.md quotes from it rest on these functions."""
 
 import numpy as np
 import pytest
 
+from dampersim.discrepancy.fitting import UNCALIBRATED
 from dampersim.discrepancy.likelihood import Likelihood
 from tests.discrepancy.benches import load_bench
 
 TERMS = ("repeat", "model", "mains", "input", "uncalibrated", "floor")
+N, K = 9, 8
 
 
 @pytest.fixture(scope="module")
@@ -17,59 +17,98 @@ def bench():
     return load_bench("bench_sigma_terms")
 
 
-def case(seed=0, n=9, k=8):
-    """Terms, a likelihood, model coefficients and the compare step's four maps."""
+def cz(rng, *shape):
+    return rng.normal(size=shape) + 1j * rng.normal(size=shape)
+
+
+def case(seed=0, cell=0.1):
+    """Terms (each cell's variance of each term about ``cell`` [N m^2]), a likelihood, model
+    coefficients y0 and the compare step's four maps, laid out as diagnose's step 1 makes
+    them, built from known changes: (maps, {column: change})."""
     rng = np.random.default_rng(seed)
+    meas = cz(rng, N, K)
+    terms = {t: cell * (0.1 + rng.random((N, K))) for t in TERMS}
+    lik = Likelihood(meas, np.sqrt(sum(terms.values())), np.full(N, 150.0), np.arange(1, K + 1))
+    y0 = meas + 0.1 * cz(rng, N, K)
+    change = {"model": 0.1 * cz(rng, N, K), "input": 0.1 * cz(rng, N, K)}
+    unc = []
+    for name in UNCALIBRATED:
+        odd, even = 0.1 * cz(rng, N, K), 0.05 * cz(rng, N, K)
+        change[f"uncalibrated:{name}"], change[f"uncalibrated:{name}:even"] = odd, even
+        unc += [y0 + even + odd, y0 + even - odd]  # moved +, then -
+    y_in = np.concatenate([y0 + change["input"], y0 - change["input"]])  # the input moved up, then down
+    maps = [y0[None], (y0 + change["model"])[None], y_in[None], np.stack(unc)]
+    return terms, lik, y0, maps, change
 
-    def cz(*shape):
-        return rng.normal(size=shape) + 1j * rng.normal(size=shape)
 
-    meas = cz(n, k)
-    terms = {t: 0.01 + 0.1 * rng.random((n, k)) for t in TERMS}
-    lik = Likelihood(meas, np.sqrt(sum(terms.values())), np.full(n, 150.0), np.arange(1, k + 1))
-    y0 = meas + 0.1 * cz(n, k)
-    compare = [y0[None], (y0 + 0.1 * cz(n, k))[None], np.concatenate([y0 - 0.1 * cz(n, k), y0 + 0.1 * cz(n, k)])[None],
-               np.stack([y0 + 0.1 * cz(n, k) for _ in range(6)])]
-    return terms, lik, y0, compare
+def test_the_changes_are_read_from_the_compare_maps_in_their_order(bench):
+    _, _, _, maps, change = case()
+    got = bench.systematic_changes(maps, N)
+    assert list(got) == list(change)
+    for k, v in change.items():  # up to the sign, which u u^T does not see
+        assert min(np.max(np.abs(got[k] - v)), np.max(np.abs(got[k] + v))) < 1e-12, k
+
+
+def test_the_fitted_amplitudes_recover_a_residual_built_from_the_changes(bench):
+    # residual = sum of a_c u_c (through the channels' gain and delay) with per-cell terms a
+    # millionth of the changes' size: the posterior mean is then the least-squares solution,
+    # which recovers every amplitude; a wrong column (layout, sign aside, or transform) cannot
+    terms, lik, y0, maps, change = case(seed=1, cell=1e-12)
+    rows, nu = [0, 3, 6], np.array([0.03, 2e-4])
+    u = bench.systematic_changes(maps, N)
+    amps = dict(zip(u, np.linspace(-1.5, 2.0, len(u))))
+    resid = sum(a * u[c] for c, a in amps.items())
+    y = lik.meas - resid  # meas - y = resid, before the transform
+    lik.meas = lik.transform(y, list(range(N)), nu) + lik.transform(resid, list(range(N)), nu)
+    got = bench.correlated_chi2(terms, maps, lik, y[rows], rows, nu)
+    for c, a in amps.items():
+        assert got["amplitudes"][c] == pytest.approx(a, rel=1e-6, abs=1e-6), c
+    # the columns carry the variance of the terms they replace: here the terms are tiny, so
+    # their ratio is huge; the algebra of `size` is checked in the next test
+    assert got["size"]["model"] > 1e6
+
+
+def test_the_sizes_compare_the_columns_with_the_variances_they_replace(bench):
+    terms, lik, y0, maps, change = case(seed=2)
+    rows, nu = [1, 4, 7], np.zeros(2)
+    u = bench.systematic_changes(maps, N)
+    # the diagnosis's own variances of the three systematic terms (likelihood.sigma_variances)
+    terms["model"] = np.abs(u["model"]) ** 2
+    terms["input"] = np.abs(u["input"]) ** 2
+    terms["uncalibrated"] = sum(np.abs(v) ** 2 for k, v in u.items() if k.startswith("uncalibrated"))
+    got = bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu)
+    assert got["size"] == pytest.approx({"model": 1.0, "input": 1.0, "uncalibrated": 1.0}, rel=1e-12)
 
 
 def test_the_diagonal_variant_reproduces_the_plain_held_out_chi2(bench):
-    terms, lik, y0, compare = case()
+    terms, lik, y0, maps, _ = case(seed=3)
     rows, nu = [1, 4, 7], np.array([0.02, 1e-4])
     plain = lik.reduced_chi2(y0[rows], rows, nu)
     cells = bench.held_out_cells(terms, lik, y0[rows], rows, nu)
-    # the breakdown is printed to three decimals
-    assert cells["reduced_chi2"] == pytest.approx(plain, abs=1e-3)
-    assert bench.correlated_chi2(terms, compare, lik, y0[rows], rows, nu)["diagonal"] == pytest.approx(plain, rel=1e-9)
-    # the per-order figures average to the whole (each order has the same number of cells)
-    assert np.mean(list(cells["per_order"].values())) == pytest.approx(plain, abs=2e-3)
+    assert cells["reduced_chi2"] == pytest.approx(plain, abs=5e-4)  # printed to three decimals
+    assert bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu)["diagonal"] == pytest.approx(plain, rel=1e-9)
+    # the per-order figures average to the whole (each order has as many cells), each rounded
+    assert np.mean(list(cells["per_order"].values())) == pytest.approx(plain, abs=5e-4 + 5e-4)
 
 
-def test_a_misfit_along_a_systematic_direction_is_discounted_by_its_prior(bench):
-    # residual = the discretisation check's change exactly (amplitude 1); the other systematic
-    # changes are zero. For C = D + u u^T and r = u: r^T C^-1 r = s / (1 + s), s = u^T D^-1 u
-    # (D: the measured terms, half the cell variance on each of the real and imaginary parts)
-    terms, lik, y0, compare = case(seed=1)
-    rows = [0, 3, 6]
-    u = compare[1][0] - y0
-    y = lik.meas - u  # meas - y = u at every row
-    compare = [compare[0], compare[1], np.concatenate([y0, y0])[None], np.stack([y0] * 6)]
-    nu = np.zeros(2)
-    d_meas = 0.5 * sum(terms[t][rows] for t in ("repeat", "mains", "floor"))
-    s = float(np.sum(np.abs(u[rows]) ** 2 / d_meas))
-    got = bench.correlated_chi2(terms, compare, lik, y[rows], rows, nu)
-    n_res = 2 * len(rows) * lik.meas.shape[1]
+def test_a_misfit_along_one_change_is_discounted_by_its_unit_prior(bench):
+    # residual = the input channel's change exactly, the other changes zero: for C = D + u u^T
+    # and r = u, r^T C^-1 r = s / (1 + s), s = u^T D^-1 u (D: the per-cell terms, half the cell
+    # variance on each of the real and imaginary parts); with one amplitude per point the rows
+    # are independent and each discounts its own share
+    terms, lik, y0, maps, _ = case(seed=4)
+    rows, nu = [0, 3, 6], np.array([-0.02, 3e-4])
+    u = bench.systematic_changes(maps, N)["input"]
+    maps = [maps[0], maps[0], np.concatenate([y0 + u, y0 - u])[None], np.stack([y0] * maps[3].shape[0])]
+    every = list(range(N))
+    lik.meas = lik.transform(y0, every, nu) + lik.transform(u, every, nu)  # meas - model = u after the transform
+    got = bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu)
+    ut = lik.transform(u[rows], rows, nu)
+    d_cell = 0.5 * sum(terms[t][rows] for t in ("repeat", "mains", "floor"))
+    s_j = np.sum(np.abs(ut) ** 2 / d_cell, axis=1)
+    n_res = 2 * len(rows) * K
     # exact algebra, solved numerically: 1e-9 relative
-    assert got["global"] == pytest.approx(s / (1 + s) / n_res, rel=1e-9)
-    assert got["measured_terms_only"] == pytest.approx(s / n_res, rel=1e-9)
-    # one amplitude per point: the rows are independent, each discounts its own share s_j
-    s_j = np.sum(np.abs(u[rows]) ** 2 / d_meas, axis=1)
+    assert got["global"] == pytest.approx(s_j.sum() / (1 + s_j.sum()) / n_res, rel=1e-9)
     assert got["per_point"] == pytest.approx(float(np.sum(s_j / (1 + s_j))) / n_res, rel=1e-9)
-
-
-def test_with_one_held_out_point_both_correlated_variants_agree(bench):
-    terms, lik, y0, compare = case(seed=2)
-    rows, nu = [5], np.array([-0.01, 2e-4])
-    got = bench.correlated_chi2(terms, compare, lik, y0[rows] + 0.05, rows, nu)
-    assert got["global"] == pytest.approx(got["per_point"], rel=1e-9)
-    assert math.isfinite(got["measured_terms_only"]) and got["measured_terms_only"] >= got["global"]
+    assert got["per_cell_terms_only"] == pytest.approx(s_j.sum() / n_res, rel=1e-9)
+    assert got["amplitudes"]["input"] == pytest.approx(s_j.sum() / (1 + s_j.sum()), rel=1e-9)
