@@ -94,15 +94,18 @@ def terms_of(camp, workers: int) -> dict:
 
 def whole_diagnosis(camp, workers: int, share: float):
     """The whole diagnosis of ``camp`` (no next-test design) at floor share ``share``: (its
-    JSON, :func:`held_out_cells` of the most probable model)."""
+    JSON, :func:`held_out_cells` of the verdict's model, the most probable of the fitted
+    models, with a "correlated" key from :func:`correlated_chi2` or the reason it is
+    missing; {"error": ...} when the held-out chi^2 cannot be matched)."""
     default, real_terms, real_chi = (likelihood.SIGMA_FLOOR_SHARE, likelihood.sigma_variances,
                                      likelihood.Likelihood.robust_reduced_chi2)
     terms, calls = {}, []
 
     def spy_terms(*args, **kwargs):
+        out = real_terms(*args, **kwargs)
         terms.clear()
-        terms.update(real_terms(*args, **kwargs))
-        return terms
+        terms.update(out)
+        return out
 
     def spy_chi(self, y, rows, nuisance=None):
         value = real_chi(self, y, rows, nuisance)
@@ -175,10 +178,10 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
     one per column and point; "per_cell_terms_only": D alone; "diagonal": the diagnosis's own
     form (every term on the diagonal), which reproduces :func:`held_out_cells`'s figure.
     Also returned: "amplitudes", the global form's fitted amplitude of each column (the
-    posterior mean (U^T D^-1 U + I)^-1 U^T D^-1 r; a term drawn from its prior gives amplitudes
-    of order 1), and "size", each term's summed |u|^2 over the held-out cells against its
-    summed variance in ``terms`` (1 where the columns carry the variance they replace,
-    but for the channels' gain exp(log gain) on the columns)."""
+    posterior mean (U^T D^-1 U + I)^-1 U^T D^-1 r; for a term drawn from its prior the expected
+    square of a posterior mean is 1 less its posterior variance), and "size", each term's summed |u|^2 over the held-out cells against its
+    summed variance in ``terms`` (1 where the columns, before the channels' gain and delay,
+    carry the variance they replace)."""
     n = len(lik.meas)
     u = systematic_changes(compare, n)
 

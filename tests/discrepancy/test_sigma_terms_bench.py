@@ -55,14 +55,13 @@ def test_the_fitted_amplitudes_recover_a_residual_built_from_the_changes(bench):
     # which recovers every amplitude; a wrong column (layout, sign aside, or transform) cannot
     terms, lik, y0, maps, change = case(seed=1, cell=1e-12)
     rows, nu = [0, 3, 6], np.array([0.03, 2e-4])
-    u = bench.systematic_changes(maps, N)
-    amps = dict(zip(u, np.linspace(-1.5, 2.0, len(u))))
-    resid = sum(a * u[c] for c, a in amps.items())
+    amps = dict(zip(change, np.linspace(-1.5, 2.0, len(change))))
+    resid = sum(a * change[c] for c, a in amps.items())  # from the known changes, not the bench's reading
     y = lik.meas - resid  # meas - y = resid, before the transform
     lik.meas = lik.transform(y, list(range(N)), nu) + lik.transform(resid, list(range(N)), nu)
     got = bench.correlated_chi2(terms, maps, lik, y[rows], rows, nu)
-    for c, a in amps.items():
-        assert got["amplitudes"][c] == pytest.approx(a, rel=1e-6, abs=1e-6), c
+    for c, a in amps.items():  # up to the sign of a column, which u u^T does not see
+        assert abs(got["amplitudes"][c]) == pytest.approx(abs(a), rel=1e-6, abs=1e-6), c
     # the columns carry the variance of the terms they replace: here the terms are tiny, so
     # their ratio is huge; the algebra of `size` is checked in the next test
     assert got["size"]["model"] > 1e6
@@ -112,3 +111,28 @@ def test_a_misfit_along_one_change_is_discounted_by_its_unit_prior(bench):
     assert got["per_point"] == pytest.approx(float(np.sum(s_j / (1 + s_j))) / n_res, rel=1e-9)
     assert got["per_cell_terms_only"] == pytest.approx(s_j.sum() / n_res, rel=1e-9)
     assert got["amplitudes"]["input"] == pytest.approx(s_j.sum() / (1 + s_j.sum()), rel=1e-9)
+
+
+def test_the_cell_breakdown_by_order_and_by_term_left_out(bench):
+    # two held-out points, residual 0.3 N m in every cell of order 1 and 0 elsewhere; terms:
+    # floor 0.04, input 0.05 N m^2 at order 1 only, the others zero
+    rng = np.random.default_rng(5)
+    meas = cz(rng, 4, 3)
+    terms = {t: np.zeros((4, 3)) for t in TERMS}
+    terms["floor"][:] = 0.04
+    terms["input"][:, 0] = 0.05
+    sigma = np.sqrt(sum(terms.values()))
+    lik = Likelihood(meas, sigma, np.full(4, 150.0), np.arange(1, 4))
+    rows, nu = [1, 3], np.zeros(2)
+    y = meas[rows].copy()
+    y[:, 0] -= 0.3
+    cells = bench.held_out_cells(terms, lik, y, rows, nu)
+    assert cells["per_order"] == {1: pytest.approx(0.09 / 0.09, abs=5e-4), 2: 0.0, 3: 0.0}
+    assert cells["reduced_chi2"] == pytest.approx(1.0 / 3, abs=5e-4)
+    assert cells["rms_residual_nm"] == {1: pytest.approx(0.3, abs=5e-5), 2: 0.0, 3: 0.0}
+    assert cells["rms_term_nm"]["input"] == {1: pytest.approx(0.05 ** 0.5, abs=5e-5), 2: 0.0, 3: 0.0}
+    assert cells["rms_term_nm"]["floor"] == {k: pytest.approx(0.2, abs=5e-5) for k in (1, 2, 3)}
+    # without the input channel order 1 reads 0.09 / 0.04; a zero term changes nothing
+    assert cells["without"]["input"] == pytest.approx((0.09 / 0.04) / 3, abs=5e-4)
+    assert cells["without"]["repeat"] == pytest.approx(cells["reduced_chi2"], abs=5e-4)
+    assert cells["median_share"]["floor"] == pytest.approx(1.0)
