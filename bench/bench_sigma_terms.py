@@ -174,12 +174,14 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
     on each column's amplitude makes this the marginal of fitting the amplitudes (and equal
     to the profile: min over a of |r - U a|^2_D + |a|^2). "global": one amplitude per column
     for the whole campaign (an assumption: the input channel's move mixes an offset and a
-    gain, the discretisation check also carries the scatter of chaotic orders); "per_point":
-    one per column and point; "per_cell_terms_only": D alone; "diagonal": the diagnosis's own
-    form (every term on the diagonal), which reproduces :func:`held_out_cells`'s figure.
-    Also returned: "amplitudes", the global form's fitted amplitude of each column (the
-    posterior mean (U^T D^-1 U + I)^-1 U^T D^-1 r; for a term drawn from its prior the expected
-    square of a posterior mean is 1 less its posterior variance), and "size", each term's summed |u|^2 over the held-out cells against its
+    gain, the discretisation check also carries the scatter of chaotic orders, an even part
+    is second order in its odd part's parameter error but gets an amplitude of its own);
+    "per_point": one per column and point; "per_cell_terms_only": D alone; "diagonal": the
+    diagnosis's own form (every term on the diagonal), which reproduces
+    :func:`held_out_cells`'s figure. Also returned: "amplitudes", the global form's fitted
+    amplitude of each column (the posterior mean (U^T D^-1 U + I)^-1 U^T D^-1 r; for a term
+    drawn from its prior the expected square of a posterior mean is 1 less its posterior
+    variance), and "size", each term's summed |u|^2 over the held-out cells against its
     summed variance in ``terms`` (1 where the columns, before the channels' gain and delay,
     carry the variance they replace)."""
     n = len(lik.meas)
