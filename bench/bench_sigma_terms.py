@@ -26,10 +26,12 @@ benchmark's run of it). ``--floor 1e-3`` is the default floor.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
 import tempfile
+from unittest import mock
 
 import numpy as np
 
@@ -70,19 +72,12 @@ def diagnose_until(camp, workers: int, name: str, capture) -> None:
     """Run the diagnosis of ``camp`` (no next-test design) until it calls ``name`` of
     :mod:`dampersim.discrepancy.diagnose`: ``capture`` gets that call's arguments, then the
     diagnosis stops (it returns normally when it ends before that call, e.g. not diagnosed)."""
-    real = getattr(dg, name)
-
     def spy(*args, **kwargs):
         capture(*args, **kwargs)
         raise _Stop
 
-    setattr(dg, name, spy)
-    try:
+    with mock.patch.object(dg, name, spy), contextlib.suppress(_Stop):
         dg.diagnose(camp, workers=workers, recommend=False)
-    except _Stop:
-        pass
-    finally:
-        setattr(dg, name, real)
 
 
 def terms_of(camp, workers: int) -> dict:
@@ -97,9 +92,9 @@ def whole_diagnosis(camp, workers: int, share: float):
     JSON, :func:`held_out_cells` of the verdict's model, the most probable of the fitted
     models, with a "correlated" key from :func:`correlated_chi2` or the reason it is
     missing; {"error": ...} when the held-out chi^2 cannot be matched)."""
-    default, real_terms, real_chi = (likelihood.SIGMA_FLOOR_SHARE, likelihood.sigma_variances,
-                                     likelihood.Likelihood.robust_reduced_chi2)
-    terms, calls = {}, []
+    real_terms, real_chi, real_sets = (likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2,
+                                       drive.coefficients_of_sets)
+    terms, calls, compare = {}, [], []
 
     def spy_terms(*args, **kwargs):
         out = real_terms(*args, **kwargs)
@@ -112,21 +107,17 @@ def whole_diagnosis(camp, workers: int, share: float):
         calls.append((value, self, y, rows, nuisance))
         return value
 
-    real_sets, compare = drive.coefficients_of_sets, []
-
     def spy_sets(*args, **kwargs):  # the compare step's four maps come first (diagnose.diagnose, step 1)
         out = real_sets(*args, **kwargs)
         if len(compare) < 4:
             compare.append(out)
         return out
 
-    likelihood.SIGMA_FLOOR_SHARE, likelihood.sigma_variances = share, spy_terms
-    likelihood.Likelihood.robust_reduced_chi2, drive.coefficients_of_sets = spy_chi, spy_sets
-    try:
+    with (mock.patch.object(likelihood, "SIGMA_FLOOR_SHARE", share),
+          mock.patch.object(likelihood, "sigma_variances", spy_terms),
+          mock.patch.object(likelihood.Likelihood, "robust_reduced_chi2", spy_chi),
+          mock.patch.object(drive, "coefficients_of_sets", spy_sets)):
         d_ = dg.diagnose(camp, workers=workers, recommend=False).to_json()
-    finally:
-        likelihood.SIGMA_FLOOR_SHARE, likelihood.sigma_variances = default, real_terms
-        likelihood.Likelihood.robust_reduced_chi2, drive.coefficients_of_sets = real_chi, real_sets
     top = d_["likelihood"]["reduced_chi2_held_out"]
     # the verdict's call: the last whose value is the one the document reports (every call is
     # on the held-out rows; the verdict's comes after the fitted models' own)
@@ -191,7 +182,7 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
         t = lik.transform(np.nan_to_num(z[rows]), rows, nuisance)
         return np.concatenate([t.real.ravel(), t.imag.ravel()])
 
-    d = lik.meas[rows] - lik.transform(y, rows, nuisance)
+    d = held_out_residual(lik, y, rows, nuisance)
     r = np.concatenate([d.real.ravel(), d.imag.ravel()])
     diag_all = np.tile(0.5 * sum(np.asarray(v)[rows] for v in terms.values()).ravel(), 2)
     diag_cell = np.tile(0.5 * sum(np.asarray(terms[k])[rows] for k in ("repeat", "mains", "floor")).ravel(), 2)
@@ -203,9 +194,9 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
             w[rows[j]] = v[rows[j]]
             cols_point.append(real(w))
 
-    def chi(diag, c):
-        c = np.reshape(c, (len(r), -1))
-        return float(r @ np.linalg.solve(np.diag(diag) + c @ c.T, r) / len(r))
+    def chi(diag, c=None):
+        cov = np.diag(diag) if c is None else np.diag(diag) + c @ c.T
+        return float(r @ np.linalg.solve(cov, r) / len(r))
 
     wc = cols / diag_cell[:, None]
     amp = np.linalg.solve(cols.T @ wc + np.eye(cols.shape[1]), wc.T @ r)
@@ -213,10 +204,14 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
     for term in ("model", "input", "uncalibrated"):
         summed = sum(float(np.sum(np.abs(v[rows]) ** 2)) for k, v in u.items() if k.split(":")[0] == term)
         size[term] = summed / max(float(np.sum(np.asarray(terms[term])[rows])), 1e-300)
-    return {"diagonal": chi(diag_all, np.zeros((len(r), 0))), "global": chi(diag_cell, cols),
-            "per_point": chi(diag_cell, np.column_stack(cols_point)),
-            "per_cell_terms_only": chi(diag_cell, np.zeros((len(r), 0))),
+    return {"diagonal": chi(diag_all), "global": chi(diag_cell, cols),
+            "per_point": chi(diag_cell, np.column_stack(cols_point)), "per_cell_terms_only": chi(diag_cell),
             "amplitudes": dict(zip(u, map(float, amp))), "size": size}
+
+
+def held_out_residual(lik, y, rows, nuisance) -> np.ndarray:
+    """Measured minus model coefficients [N m] at ``rows`` after the channels' gain and delay."""
+    return lik.meas[rows] - lik.transform(y, rows, nuisance)
 
 
 def held_out_cells(terms: dict, lik, y, rows, nuisance) -> dict:
@@ -227,7 +222,7 @@ def held_out_cells(terms: dict, lik, y, rows, nuisance) -> dict:
     held-out cells [N m], the median share of each term in the held-out cells' variance, and
     the reduced chi^2 the same residuals would have with each term left out of sigma (the
     residuals as fitted, not refitted)."""
-    d2 = np.abs(lik.meas[rows] - lik.transform(y, rows, nuisance)) ** 2
+    d2 = np.abs(held_out_residual(lik, y, rows, nuisance)) ** 2
     var = {k: np.asarray(v)[rows] for k, v in terms.items()}
     total = sum(var.values())
     orders = [int(k) for k in lik.orders]

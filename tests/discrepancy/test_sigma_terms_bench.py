@@ -4,6 +4,8 @@ diagnosis is run): the figures docs/discrepancy.md quotes from it rest on these 
 import numpy as np
 import pytest
 
+from dampersim.discrepancy import diagnose as dg
+from dampersim.discrepancy import drive, likelihood
 from dampersim.discrepancy.fitting import UNCALIBRATED
 from dampersim.discrepancy.likelihood import Likelihood
 from tests.discrepancy.benches import load_bench
@@ -136,3 +138,43 @@ def test_the_cell_breakdown_by_order_and_by_term_left_out(bench):
     assert cells["without"]["input"] == pytest.approx((0.09 / 0.04) / 3, abs=5e-4)
     assert cells["without"]["repeat"] == pytest.approx(cells["reduced_chi2"], abs=5e-4)
     assert cells["median_share"]["floor"] == pytest.approx(1.0)
+
+
+def test_the_whole_diagnosis_reading_picks_the_verdicts_call_and_restores_what_it_patched(bench, monkeypatch):
+    # a stand-in diagnosis makes the calls the real one makes (diagnose.diagnose): the compare
+    # step's four maps, then a later map, the cell variances, then the held-out chi^2 of two
+    # fitted models, the verdict's last; the bench must read that one and undo its spies
+    terms, lik, y0, maps, _ = case(seed=6)
+    rows, nu = [1, 4, 7], np.array([0.01, 1e-4])
+    other = y0[rows] + 0.3
+    maps_left = iter(maps + [y0[None]])
+    monkeypatch.setattr(drive, "coefficients_of_sets", lambda *a, **k: next(maps_left))
+    monkeypatch.setattr(likelihood, "sigma_variances", lambda *a, **k: terms)
+    patched = (drive.coefficients_of_sets, likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2)
+    seen = {}
+
+    class Doc:
+        def __init__(self, value):
+            self.value = value
+
+        def to_json(self):
+            return {"likelihood": {"reduced_chi2_held_out": self.value}}
+
+    def stand_in(camp, workers, recommend):
+        seen["floor"] = likelihood.SIGMA_FLOOR_SHARE
+        for _ in range(5):
+            drive.coefficients_of_sets(None, [], [])
+        likelihood.sigma_variances()
+        lik.robust_reduced_chi2(other, rows, nu)
+        return Doc(lik.robust_reduced_chi2(y0[rows], rows, nu))
+
+    monkeypatch.setattr(dg, "diagnose", stand_in)
+    floor = likelihood.SIGMA_FLOOR_SHARE
+    _, cells = bench.whole_diagnosis(None, 1, 0.123)
+    assert seen["floor"] == 0.123 and likelihood.SIGMA_FLOOR_SHARE == floor
+    assert (drive.coefficients_of_sets, likelihood.sigma_variances,
+            likelihood.Likelihood.robust_reduced_chi2) == patched
+    plain = lik.reduced_chi2(y0[rows], rows, nu)
+    assert cells["reduced_chi2"] == pytest.approx(plain, abs=5e-4)  # the verdict's model, not the other
+    assert cells["correlated"]["diagonal"] == pytest.approx(plain, abs=5e-4)
+    assert cells["correlated"]["size"]["input"] > 0  # read from the third of the compare step's maps
