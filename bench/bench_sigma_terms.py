@@ -9,7 +9,10 @@ stopped there; printed per case:
   of its share of the cell's variance (repeatability, discretisation, input channel, uncalibrated
   parameters, mains pick-up, floor;
   :func:`dampersim.discrepancy.likelihood.sigma_variances`);
-* per point the RMS of each term [N m].
+* per point the RMS of each term [N m];
+* the truth's coordinate along each direction the calibration cannot follow, in standard
+  uncertainties (:func:`truth_coordinates`: what the fitted amplitudes below would be if the
+  residuals were the truth's parameter errors alone, in the linear limit).
 
 ``--floor F [F ...]`` then runs the whole diagnosis (no next-test design) once per
 floor share F (``likelihood.SIGMA_FLOOR_SHARE``) and prints its verdict, posterior and
@@ -17,10 +20,15 @@ reduced chi^2 (held out and training), and where the verdict's held-out misfit s
 the uncertainty terms (:func:`held_out_cells`: per order, and with each term left out, and
 :func:`correlated_chi2`: the systematic terms carried as directions, not cell variances): a
 whole diagnosis each (697 s for control/none/0 on 2 cores shared with other work, the hard
-benchmark's run of it). ``--floor 1e-3`` is the default floor.
+benchmark's run of it). ``--floor 1e-3`` is the default floor. The correlated reading
+prints the fitted amplitudes with their posterior standard deviations and a check of their
+size against their prior (:func:`prior_check`). ``--rig`` adds the rig's parts as further
+directions (:func:`rig_directions`, each at ``--rig-sd``; two runs per point and direction
+after the diagnosis) with the truth's coordinates along them.
 
     python bench/bench_sigma_terms.py control/none/0
     python bench/bench_sigma_terms.py control/none/0 control/calibration/0 --floor 1e-3 1e-4
+    python bench/bench_sigma_terms.py control/rig_stiff_parts/1 --floor 1e-3 --rig
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import sys
 import tempfile
@@ -43,19 +52,63 @@ from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive  # noqa: E402
 from dampersim.discrepancy import likelihood  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
-from dampersim.discrepancy.fitting import UNCALIBRATED  # noqa: E402
+from dampersim.discrepancy.fitting import ESTIMATE_LOG_SD, UNCALIBRATED, uncalibrated_systems  # noqa: E402
 from dampersim.discrepancy.synth import synthesize  # noqa: E402
+from dampersim.parameters import default_parameters  # noqa: E402
+from dampersim.parameters.io import named_values  # noqa: E402
+
+
+#: standard uncertainty (log) of each rig part's estimate when ``--rig`` carries the rig's
+#: parts as directions: an assumption of this bench, not a measured figure (the thesis gives
+#: the rig's shafts and inertias without an uncertainty). The hard matrix's rig control draws
+#: its stiff shafts 10-20 % and the motor's inertia 5-10 % off (truths.control); the fitted
+#: amplitudes are printed in units of this value
+RIG_LOG_SD = 0.1
+
+
+def rig_directions(system) -> dict:
+    """{direction: {dotted parameter: weight}} of the rig's estimated parts, one parameter
+    each: the gearbox's shaft and inertia, every stiff shaft between it and the output motor
+    (flanges, transducer, coupling) and the output motor's inertia."""
+    els = system.rig.elements
+    out = {f"rig:{els[0].name}_stiffness": {f"rig.elements.{els[0].name}.shaft_stiffness": 1.0},
+           f"rig:{els[0].name}_inertia": {f"rig.elements.{els[0].name}.inertia": 1.0}}
+    for e in els[1:-1]:
+        out[f"rig:{e.name}_stiffness"] = {f"rig.elements.{e.name}.shaft_stiffness": 1.0}
+    out[f"rig:{els[-1].name}_inertia"] = {f"rig.elements.{els[-1].name}.inertia": 1.0}
+    return out
+
+
+def truth_coordinates(applied: dict, system, directions: dict, log_sd: float) -> dict:
+    """{direction: the truth's coordinate along it, in standard uncertainties}: the truth's log
+    changes against ``system`` (``applied``: dotted parameter -> the truth's value, as
+    synthesize reports them; parameters it does not name are the system's own) projected on
+    each direction's move of :func:`dampersim.discrepancy.fitting.uncalibrated_systems`
+    (log_sd / sqrt(len(w)) times the weights w). A residual made of the truth's changes alone
+    would, in the linear limit, give the odd column of each direction this amplitude."""
+    base = named_values(system)
+    out = {}
+    for name, w in directions.items():
+        step = log_sd / math.sqrt(len(w))
+        t = {n: math.log(float(applied.get(n, base[n])) / float(base[n])) for n in w if n in base}
+        out[name] = sum(w[n] * t[n] for n in t) / (step * sum(w[n] ** 2 for n in t)) if t else math.nan
+    return out
 
 
 class _Stop(Exception):
     """Raised by the spy of :func:`diagnose_until` once the diagnosis has made the call watched."""
 
 
-def campaign_of(case, folder, workers: int):
+def campaign_of(case, folder, workers: int, truth: dict | None = None):
+    """The case's campaign, synthesised into ``folder`` as the hard benchmark does;
+    ``truth``, when a dict is given, receives the synthesis's account of the truth
+    (:func:`dampersim.discrepancy.synth.synthesize`'s return, "perturbed" among it)."""
     spec = case["spec"]
-    synthesize(folder, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
-               noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
-               points=B.point_ids(12, 1), record=1.0, workers=workers, daq=case["daq"])
+    doc = synthesize(folder, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
+                     noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
+                     points=B.point_ids(12, 1), record=1.0, workers=workers, daq=case["daq"])
+    if truth is not None:
+        truth.update(doc)
     return read_campaign(folder)
 
 
@@ -87,11 +140,14 @@ def terms_of(camp, workers: int) -> dict:
     return seen
 
 
-def whole_diagnosis(camp, workers: int, share: float):
+def whole_diagnosis(camp, workers: int, share: float, directions: dict | None = None, log_sd: float = RIG_LOG_SD):
     """The whole diagnosis of ``camp`` (no next-test design) at floor share ``share``: (its
     JSON, :func:`held_out_cells` of the verdict's model, the most probable of the fitted
     models, with a "correlated" key from :func:`correlated_chi2` or the reason it is
-    missing; {"error": ...} when the held-out chi^2 cannot be matched)."""
+    missing; {"error": ...} when the held-out chi^2 cannot be matched). ``directions``
+    ({name: {dotted parameter: weight}}, e.g. :func:`rig_directions`) are carried as further
+    columns at standard uncertainty ``log_sd`` (:func:`direction_changes`, two runs per point
+    and direction after the diagnosis)."""
     real_terms, real_chi, real_sets = (likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2,
                                        drive.coefficients_of_sets)
     terms, calls, compare = {}, [], []
@@ -132,10 +188,40 @@ def whole_diagnosis(camp, workers: int, share: float):
     elif compare[2].shape[1] != 2 * n or compare[3].shape[0] != 2 * len(UNCALIBRATED):
         cells["correlated"] = "not computed: the compare step's maps are not y0, coarse, input, uncalibrated"
     else:
-        out = correlated_chi2(terms, compare, lik, y, rows, nuisance)
-        cells["correlated"] = {k: round(v, 3) if isinstance(v, float) else {c: round(a, 3) for c, a in v.items()}
-                               for k, v in out.items()}
+        extra = None
+        if directions:
+            extra, failed = direction_changes(camp, compare[0][0], directions, log_sd, workers)
+            cells["extra_failed_runs"] = failed
+        cells["correlated"] = _rounded(correlated_chi2(terms, compare, lik, y, rows, nuisance, extra))
     return d_, cells
+
+
+def _rounded(x, digits: int = 3):
+    if isinstance(x, dict):
+        return {k: _rounded(v, digits) for k, v in x.items()}
+    return round(x, digits) if isinstance(x, float) else x
+
+
+def _odd_even(name: str, up, down, y0) -> dict:
+    """The odd part (up - down) / 2 and the even part (up + down) / 2 - y0 of a direction moved
+    up and down, as columns ``name`` and ``name:even``."""
+    return {name: 0.5 * (up - down), f"{name}:even": 0.5 * (up + down) - y0}
+
+
+def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int, system=None):
+    """({column: complex change (points, orders)}, failed runs): each direction's odd and even
+    parts (:func:`_odd_even`) from the model moved ``log_sd`` up and down along it
+    (:func:`dampersim.discrepancy.fitting.uncalibrated_systems`) at ``system`` (default: the
+    diagnosis's, the default set), driven by every torsional point as the compare step drives
+    it; ``y0`` is that step's map at ``system``. A failed run's cells are NaN (read as no
+    change by :func:`correlated_chi2`) and counted."""
+    moved = uncalibrated_systems(system or default_parameters(), directions, log_sd)
+    with drive.Runner(workers) as runner:
+        maps = drive.coefficients_of_sets(runner, [s for _, pair in moved for s in pair], camp.torsional)
+    out = {}
+    for k, (name, _) in enumerate(moved):
+        out.update(_odd_even(name, maps[2 * k], maps[2 * k + 1], y0))
+    return out, int(np.sum(np.isnan(maps).any(axis=2)))
 
 
 def systematic_changes(compare: list, n: int) -> dict:
@@ -150,13 +236,36 @@ def systematic_changes(compare: list, n: int) -> dict:
     y0, y_in = y0[0], y_moved[0]
     out = {"model": y_coarse[0] - y0, "input": 0.5 * (y_in[:n] - y_in[n:])}
     for k, name in enumerate(UNCALIBRATED):
-        up, down = y_unc[2 * k], y_unc[2 * k + 1]
-        out[f"uncalibrated:{name}"] = 0.5 * (up - down)
-        out[f"uncalibrated:{name}:even"] = 0.5 * (up + down) - y0
+        out.update(_odd_even(f"uncalibrated:{name}", y_unc[2 * k], y_unc[2 * k + 1], y0))
     return out
 
 
-def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
+def posterior_amplitudes(cols, diag, r):
+    """(posterior mean, posterior covariance) of the amplitudes a of columns ``cols`` (real,
+    cells x columns) under a unit prior, for residuals r = cols a + e, e of variance ``diag``
+    per cell: ((U^T D^-1 U + I)^-1 U^T D^-1 r, (U^T D^-1 U + I)^-1)."""
+    wc = cols / diag[:, None]
+    cov = np.linalg.inv(cols.T @ wc + np.eye(cols.shape[1]))
+    return cov @ (wc.T @ r), cov
+
+
+def prior_check(amp, cov, cutoff: float = 0.05) -> dict:
+    """Are the posterior means ``amp`` as large as their unit prior makes them? If each
+    amplitude is drawn from its prior, the posterior mean has covariance I - C (C the posterior
+    covariance): "rms" of the means against "expected_rms" (the root mean of 1 - C_ii), and
+    "per_dof", amp^T (I - C)^+ amp over the "dof" eigen-directions of I - C above ``cutoff``
+    (those the data determine; below it, a mean carries almost nothing of its prior): about 1,
+    within sqrt(2 / dof), when the columns' sizes are honest; far below 1 when the terms are
+    wider than what the residuals realise of them."""
+    lam, vec = np.linalg.eigh(np.eye(len(amp)) - cov)
+    keep = lam > cutoff
+    q = float(np.sum((vec[:, keep].T @ amp) ** 2 / lam[keep]))
+    dof = int(keep.sum())
+    return {"rms": float(np.sqrt(np.mean(amp ** 2))), "expected_rms": float(np.sqrt(np.mean(1.0 - np.diag(cov)))),
+            "dof": dof, "per_dof": q / dof if dof else math.nan}
+
+
+def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance, extra: dict | None = None) -> dict:
     """The verdict's held-out reduced chi^2 with the systematic terms (discretisation check,
     input channel, uncalibrated directions) carried as changes of the model's coefficients
     (:func:`systematic_changes`) instead of as independent cell variances: covariance
@@ -174,7 +283,10 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
     drawn from its prior the expected square of a posterior mean is 1 less its posterior
     variance), and "size", each term's summed |u|^2 over the held-out cells against its
     summed variance in ``terms`` (1 where the columns, before the channels' gain and delay,
-    carry the variance they replace)."""
+    carry the variance they replace); "amplitude_sd", the posterior standard deviation of
+    each, and "amplitude_check", :func:`prior_check`. ``extra`` ({column: complex change
+    (points, orders)}, e.g. :func:`direction_changes`) adds "global_with_extra" and the same
+    three readings "..._with_extra" with those columns beside the others."""
     n = len(lik.meas)
     u = systematic_changes(compare, n)
 
@@ -198,15 +310,23 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance) -> dict:
         cov = np.diag(diag) if c is None else np.diag(diag) + c @ c.T
         return float(r @ np.linalg.solve(cov, r) / len(r))
 
-    wc = cols / diag_cell[:, None]
-    amp = np.linalg.solve(cols.T @ wc + np.eye(cols.shape[1]), wc.T @ r)
+    amp, cov = posterior_amplitudes(cols, diag_cell, r)
     size = {}
     for term in ("model", "input", "uncalibrated"):
         summed = sum(float(np.sum(np.abs(v[rows]) ** 2)) for k, v in u.items() if k.split(":")[0] == term)
         size[term] = summed / max(float(np.sum(np.asarray(terms[term])[rows])), 1e-300)
-    return {"diagonal": chi(diag_all), "global": chi(diag_cell, cols),
-            "per_point": chi(diag_cell, np.column_stack(cols_point)), "per_cell_terms_only": chi(diag_cell),
-            "amplitudes": dict(zip(u, map(float, amp))), "size": size}
+    out = {"diagonal": chi(diag_all), "global": chi(diag_cell, cols),
+           "per_point": chi(diag_cell, np.column_stack(cols_point)), "per_cell_terms_only": chi(diag_cell),
+           "amplitudes": dict(zip(u, map(float, amp))), "size": size,
+           "amplitude_sd": dict(zip(u, map(float, np.sqrt(np.diag(cov))))), "amplitude_check": prior_check(amp, cov)}
+    if extra:
+        both = np.column_stack([cols] + [real(v) for v in extra.values()])
+        amp, cov = posterior_amplitudes(both, diag_cell, r)
+        names = [*u, *extra]
+        out.update({"global_with_extra": chi(diag_cell, both), "amplitudes_with_extra": dict(zip(names, map(float, amp))),
+                    "amplitude_sd_with_extra": dict(zip(names, map(float, np.sqrt(np.diag(cov))))),
+                    "amplitude_check_with_extra": prior_check(amp, cov)})
+    return out
 
 
 def held_out_residual(lik, y, rows, nuisance) -> np.ndarray:
@@ -240,15 +360,27 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("cases", nargs="*", default=["control/none/0"], help="hard-matrix case ids (default control/none/0)")
     ap.add_argument("--floor", nargs="*", type=float, default=[], help="floor shares to run the whole diagnosis with")
+    ap.add_argument("--rig", action="store_true",
+                    help="with --floor: also carry the rig's parts (rig_directions) as columns of the correlated reading")
+    ap.add_argument("--rig-sd", type=float, default=RIG_LOG_SD,
+                    help=f"standard uncertainty (log) of each rig part for --rig (default {RIG_LOG_SD})")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     bad = [f for f in a.floor if not 0.0 < f < 1.0]
     if bad:
         ap.error(f"--floor {bad[0]}: accepted is a share between 0 and 1, both excluded")
+    if not 0.0 < a.rig_sd <= 1.0:
+        ap.error(f"--rig-sd {a.rig_sd}: accepted is a log standard uncertainty above 0 and at most 1")
     matrix = named_cases(ap, a.cases)
+    base = default_parameters()
+    rig = rig_directions(base) if a.rig else None
     for cid in a.cases:
         with tempfile.TemporaryDirectory() as d:
-            camp = campaign_of(matrix[cid], os.path.join(d, "campaign"), a.workers)
+            truth = {}
+            camp = campaign_of(matrix[cid], os.path.join(d, "campaign"), a.workers, truth)
+            coords = truth_coordinates(truth["perturbed"], base, UNCALIBRATED, ESTIMATE_LOG_SD)
+            if rig:
+                coords.update(truth_coordinates(truth["perturbed"], base, rig, a.rig_sd))
             var = terms_of(camp, a.workers)
             if not var:
                 print(json.dumps({"case": cid, "error": "the diagnosis stopped before its cell uncertainty"}))
@@ -259,18 +391,21 @@ def main(argv=None):
                 ids = [f"kept point {i}" for i in range(len(total))]
             print(json.dumps({
                 "case": cid, "floor_share": likelihood.SIGMA_FLOOR_SHARE,
+                "truth_coordinates": {k: round(v, 3) for k, v in coords.items()},
                 "share_of_summed_variance": {k: round(float(v.sum() / total.sum()), 3) for k, v in var.items()},
                 "median_share_per_cell": {k: round(float(np.median(v / total)), 3) for k, v in var.items()},
                 "rms_per_point_nm": {pid: {k: round(float(np.sqrt(v[i].mean())), 4) for k, v in var.items()}
                                      for i, pid in enumerate(ids)}}), flush=True)
             for share in a.floor:
-                d_, cells = whole_diagnosis(camp, a.workers, share)
+                d_, cells = whole_diagnosis(camp, a.workers, share, rig, a.rig_sd)
                 lk = d_["likelihood"]
                 print(json.dumps({"case": cid, "floor_share": share, "verdict": d_["verdict"],
                                   "posterior": {k: round(v, 3) for k, v in d_["posterior"].items() if v >= 0.001},
                                   "reduced_chi2_held_out": lk["reduced_chi2_held_out"],
-                                  "reduced_chi2_train": lk["reduced_chi2_train"],
-                                  "simulations": d_["simulations"], "held_out_cells": cells}), flush=True)
+                                  "reduced_chi2_train": lk["reduced_chi2_train"], "learning_rate": lk["learning_rate"],
+                                  "calibration_taken_from": lk["calibration_taken_from"],
+                                  "simulations": d_["simulations"], "wall_time_s": round(d_["wall_time_s"]),
+                                  "held_out_cells": cells}), flush=True)
     return 0
 
 

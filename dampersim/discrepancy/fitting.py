@@ -11,7 +11,7 @@ import numpy as np
 
 from dampersim.discrepancy.effects import info, parameters_of
 from dampersim.parameters import with_updates
-from dampersim.parameters.io import flat_values
+from dampersim.parameters.io import flat_values, named_values
 
 #: estimated parameters of [thesis] §6.1 re-fitted by the calibration (log scale factors)
 CALIBRATION = {
@@ -76,15 +76,18 @@ def calibrated_system(system, x: np.ndarray):
     return with_updates(system, upd, check=False)
 
 
-def uncalibrated_systems(system) -> list:
-    """``system`` moved one standard uncertainty up and down along each UNCALIBRATED direction:
-    a list of (direction name, [system moved up, system moved down]). A split moves its two
-    parameters by +-ESTIMATE_LOG_SD / sqrt(2) in opposite senses, a single parameter by
-    +-ESTIMATE_LOG_SD (log). Parameters the set does not have are skipped."""
-    flat = flat_values(system)
+def uncalibrated_systems(system, directions=None, log_sd: float = ESTIMATE_LOG_SD) -> list:
+    """``system`` moved one standard uncertainty up and down along each direction of
+    ``directions`` ({name: {dotted parameter: weight}}, default UNCALIBRATED): a list of
+    (direction name, [system moved up, system moved down]). A split moves its two parameters
+    by +-log_sd / sqrt(2) in opposite senses, a single parameter by +-log_sd (log; default
+    ESTIMATE_LOG_SD, each parameter's own standard uncertainty). Parameters the set does not
+    have are skipped; rig elements are named as :func:`with_updates` names them
+    (``rig.elements.gearbox.inertia``)."""
+    flat = named_values(system)
     out = []
-    for name, direction in UNCALIBRATED.items():
-        step = ESTIMATE_LOG_SD / math.sqrt(len(direction))
+    for name, direction in (UNCALIBRATED if directions is None else directions).items():
+        step = log_sd / math.sqrt(len(direction))
         moved = [with_updates(system, {n: float(flat[n]) * math.exp(sign * w * step)
                                        for n, w in direction.items() if n in flat}, check=False)
                  for sign in (1.0, -1.0)]

@@ -212,9 +212,11 @@ def flat_values(system: m.DamperSystem) -> dict:
     return flat
 
 
-def dotted_names(system: m.DamperSystem) -> list[str]:
-    """Every settable dotted name of ``system`` (rig elements addressed by their name)."""
-    names = []
+def named_values(system: m.DamperSystem) -> dict:
+    """{dotted name: value} of every settable scalar of ``system``, the names
+    :func:`with_updates` accepts (rig elements addressed by their name, e.g.
+    ``rig.elements.gearbox.inertia``; unlike :func:`flat_values`)."""
+    values = {}
 
     def walk(obj, prefix):
         for f in dataclasses.fields(obj):
@@ -228,10 +230,15 @@ def dotted_names(system: m.DamperSystem) -> list[str]:
                 for e in v:
                     walk(e, f"{p}.{e.name}.")
             else:
-                names.append(p)
+                values[p] = v
 
     walk(system, "")
-    return names
+    return values
+
+
+def dotted_names(system: m.DamperSystem) -> list[str]:
+    """Every settable dotted name of ``system`` (rig elements addressed by their name)."""
+    return list(named_values(system))
 
 
 def _replace_path(obj, parts, raw, full):
@@ -293,6 +300,7 @@ __all__ = [
     "load_toml",
     "dotted_names",
     "flat_values",
+    "named_values",
     "with_updates",
     "parse_set_options",
 ]

@@ -90,3 +90,27 @@ def test_uncalibrated_directions_move_only_what_the_calibration_cannot_follow():
             group = [g for g in CALIBRATION.values() if set(direction) <= set(g)]
             if len(direction) > 1:
                 assert group and sum(math.log(f[n] / flat[n]) for n in group[0]) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_uncalibrated_systems_moves_given_directions_by_a_given_uncertainty():
+    # other directions (here a rig shaft and the motor's inertia) at another standard
+    # uncertainty: each set differs from the base in its direction's parameters only, by
+    # exactly +-log_sd (rel 1e-12: exp then log of the same float, to rounding)
+    import math
+
+    from dampersim.discrepancy.fitting import uncalibrated_systems
+    from dampersim.parameters import default_parameters
+    from dampersim.parameters.io import named_values as flat_values
+
+    base = default_parameters()
+    flat = flat_values(base)
+    dirs = {"transducer": {"rig.elements.transducer.shaft_stiffness": 1.0},
+            "motor": {"rig.elements.output_motor.inertia": 1.0}}
+    moved = uncalibrated_systems(base, dirs, log_sd=0.1)
+    assert [name for name, _ in moved] == ["transducer", "motor"]
+    for name, pair in moved:
+        (param,) = dirs[name]
+        for s, sign in zip(pair, (1.0, -1.0)):
+            f = flat_values(s)
+            assert {n for n in flat if f[n] != flat[n]} == {param}
+            assert math.log(f[param] / flat[param]) == pytest.approx(sign * 0.1, rel=1e-12)

@@ -178,3 +178,114 @@ def test_the_whole_diagnosis_reading_picks_the_verdicts_call_and_restores_what_i
     assert cells["reduced_chi2"] == pytest.approx(plain, abs=5e-4)  # the verdict's model, not the other
     assert cells["correlated"]["diagonal"] == pytest.approx(plain, abs=5e-4)
     assert cells["correlated"]["size"]["input"] > 0  # read from the third of the compare step's maps
+
+
+def test_truth_coordinates_by_hand(bench):
+    # log changes +0.03 / -0.03 of the inner and nested springs: split coordinate
+    # (0.03 + 0.03) / (0.06 / sqrt(2) * 2) = 0.707; the tertiary inertia at +0.12 is 2 standard
+    # uncertainties; a pair friction scaled together (a calibration factor) has no split; a
+    # rig shaft at -0.15 is -1.5 at a rig uncertainty of 0.1
+    import math
+
+    from dampersim.discrepancy.fitting import ESTIMATE_LOG_SD
+    from dampersim.parameters import default_parameters
+    from dampersim.parameters.io import named_values
+
+    base = default_parameters()
+    v = named_values(base)
+    up = {"inner.spring.stiffness": 0.03, "inner.nested.stiffness": -0.03, "inertias.tertiary": 0.12,
+          "friction.pair_outer.alpha": 0.2, "friction.pair_inner.alpha": 0.2,
+          "rig.elements.transducer.shaft_stiffness": -0.15}
+    applied = {n: v[n] * math.exp(t) for n, t in up.items()}
+    got = bench.truth_coordinates(applied, base, UNCALIBRATED, ESTIMATE_LOG_SD)
+    assert got == pytest.approx({"inner_spring_split": 0.06 / (math.sqrt(2) * 0.06), "pair_friction_split": 0.0,
+                                 "tertiary_inertia": 2.0}, abs=1e-12)
+    rig = bench.rig_directions(base)
+    got = bench.truth_coordinates(applied, base, rig, 0.1)
+    assert got["rig:transducer_stiffness"] == pytest.approx(-1.5, rel=1e-12)
+    assert {k: x for k, x in got.items() if k != "rig:transducer_stiffness"} == dict.fromkeys(
+        [k for k in rig if k != "rig:transducer_stiffness"], 0.0)
+
+
+def test_rig_directions_name_parameters_the_set_has(bench):
+    from dampersim.parameters import default_parameters
+    from dampersim.parameters.io import named_values
+
+    base = default_parameters()
+    rig = bench.rig_directions(base)
+    names = named_values(base)
+    assert len(rig) == len(base.rig.elements) + 1  # every shaft but the motor's, and two inertias: gearbox, motor
+    assert all(set(w) <= set(names) and list(w.values()) == [1.0] for w in rig.values())
+
+
+def test_posterior_amplitudes_minimise_the_regularised_misfit(bench):
+    # the posterior mean is argmin |r - U a|^2_D + |a|^2: the stacked least-squares problem
+    rng = np.random.default_rng(7)
+    cols, diag, r = rng.normal(size=(40, 5)), 0.5 + rng.random(40), rng.normal(size=40)
+    amp, cov = bench.posterior_amplitudes(cols, diag, r)
+    w = 1.0 / np.sqrt(diag)
+    stacked = np.vstack([cols * w[:, None], np.eye(5)])
+    ref = np.linalg.lstsq(stacked, np.concatenate([r * w, np.zeros(5)]), rcond=None)[0]
+    assert amp == pytest.approx(ref, rel=1e-9)
+    assert cov == pytest.approx(np.linalg.inv(stacked.T @ stacked), rel=1e-9)
+
+
+def test_the_prior_check_reads_one_for_amplitudes_drawn_from_their_prior(bench):
+    # residuals r = U a + e with a ~ N(0, I) and e ~ N(0, D): the check's mean over 4000 draws
+    # is 1 (its spread per draw is sqrt(2 / dof), so the mean's is about 0.016 for dof 2 ..
+    # 4; 0.06 is four of those); with a scaled by 0.3, about 0.3^2 on the directions the data
+    # determine well, far below
+    rng = np.random.default_rng(8)
+    cols, diag = rng.normal(size=(30, 4)) * [1.0, 0.5, 0.2, 0.05], 1.0 + rng.random(30)
+    for scale, lo, hi in ((1.0, 0.94, 1.06), (0.3, 0.0, 0.3)):
+        per_dof, rms2, expected2 = [], [], []
+        for _ in range(4000):
+            r = cols @ (scale * rng.normal(size=4)) + np.sqrt(diag) * rng.normal(size=30)
+            check = bench.prior_check(*bench.posterior_amplitudes(cols, diag, r))
+            per_dof.append(check["per_dof"])
+            rms2.append(check["rms"] ** 2)
+            expected2.append(check["expected_rms"] ** 2)
+        assert lo < np.mean(per_dof) < hi, scale
+        if scale == 1.0:  # the mean square of the posterior means is the expected one
+            assert np.mean(rms2) == pytest.approx(np.mean(expected2), rel=0.06)
+
+
+def test_direction_changes_and_the_extra_columns(bench, monkeypatch):
+    # a stand-in runner returns known maps for the moved sets: the columns are their odd and
+    # even parts, in the directions' order; a failed run is counted; an extra column's
+    # amplitude is recovered beside the systematic ones
+    terms, lik, y0, maps, change = case(seed=9, cell=1e-12)
+    odd, even = 0.1 * cz(np.random.default_rng(10), N, K), 0.02 * cz(np.random.default_rng(11), N, K)
+    moved = np.stack([y0 + even + odd, y0 + even - odd, y0, y0])
+    moved[3, 2, 5] = np.nan
+
+    class Runner:
+        def __init__(self, workers):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(drive, "Runner", Runner)
+    monkeypatch.setattr(drive, "coefficients_of_sets", lambda runner, sets, points: moved[:len(sets)])
+
+    class Camp:
+        torsional = list(range(N))
+
+    dirs = {"a": {"inertias.tertiary": 1.0}, "b": {"rig.elements.gearbox.inertia": 1.0}}
+    cols, failed = bench.direction_changes(Camp(), y0, dirs, 0.1, 1)
+    assert list(cols) == ["a", "a:even", "b", "b:even"] and failed == 1
+    assert np.max(np.abs(cols["a"] - odd)) < 1e-12 and np.max(np.abs(cols["a:even"] - even)) < 1e-12
+    rows, nu = [0, 3, 6], np.array([0.01, 1e-4])
+    every = list(range(N))
+    resid = 0.7 * change["input"] - 1.3 * odd
+    lik.meas = lik.transform(y0, every, nu) + lik.transform(resid, every, nu)
+    extra = {"a": odd, "a:even": even}
+    got = bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu, extra)
+    assert got["amplitudes_with_extra"]["a"] == pytest.approx(-1.3, abs=1e-6)
+    assert got["amplitudes_with_extra"]["input"] == pytest.approx(0.7, abs=1e-6)
+    assert got["amplitudes_with_extra"]["a:even"] == pytest.approx(0.0, abs=1e-6)
+    assert got["global_with_extra"] < got["global"]  # the extra column explains what the others cannot
