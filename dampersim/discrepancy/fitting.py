@@ -78,7 +78,7 @@ def calibrated_system(system, x: np.ndarray):
 
 def uncalibrated_systems(system, directions=None, log_sd: float = ESTIMATE_LOG_SD) -> list:
     """``system`` moved one standard uncertainty up and down along each direction of
-    ``directions`` ({name: {dotted parameter: weight}}, default UNCALIBRATED): a list of
+    ``directions`` ({name: {dotted parameter: weight +-1}}, default UNCALIBRATED): a list of
     (direction name, [system moved up, system moved down]). A split moves its two parameters
     by +-log_sd / sqrt(2) in opposite senses, a single parameter by +-log_sd (log; default
     ESTIMATE_LOG_SD, each parameter's own standard uncertainty). Parameters the set does not

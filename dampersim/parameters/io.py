@@ -213,8 +213,8 @@ def flat_values(system: m.DamperSystem) -> dict:
 
 
 def named_values(system: m.DamperSystem) -> dict:
-    """{dotted name: value} of every settable scalar of ``system``, the names
-    :func:`with_updates` accepts (rig elements addressed by their name, e.g.
+    """{dotted name: value} of every settable field of ``system`` (numbers, and the rig
+    elements' names), the names :func:`with_updates` accepts (rig elements addressed by their name, e.g.
     ``rig.elements.gearbox.inertia``; unlike :func:`flat_values`)."""
     values = {}
 

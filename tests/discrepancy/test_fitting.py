@@ -100,10 +100,10 @@ def test_uncalibrated_systems_moves_given_directions_by_a_given_uncertainty():
 
     from dampersim.discrepancy.fitting import uncalibrated_systems
     from dampersim.parameters import default_parameters
-    from dampersim.parameters.io import named_values as flat_values
+    from dampersim.parameters.io import named_values
 
     base = default_parameters()
-    flat = flat_values(base)
+    flat = named_values(base)
     dirs = {"transducer": {"rig.elements.transducer.shaft_stiffness": 1.0},
             "motor": {"rig.elements.output_motor.inertia": 1.0}}
     moved = uncalibrated_systems(base, dirs, log_sd=0.1)
@@ -111,6 +111,6 @@ def test_uncalibrated_systems_moves_given_directions_by_a_given_uncertainty():
     for name, pair in moved:
         (param,) = dirs[name]
         for s, sign in zip(pair, (1.0, -1.0)):
-            f = flat_values(s)
+            f = named_values(s)
             assert {n for n in flat if f[n] != flat[n]} == {param}
             assert math.log(f[param] / flat[param]) == pytest.approx(sign * 0.1, rel=1e-12)
