@@ -52,7 +52,7 @@ from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive  # noqa: E402
 from dampersim.discrepancy import likelihood  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
-from dampersim.discrepancy.fitting import ESTIMATE_LOG_SD, UNCALIBRATED, uncalibrated_systems  # noqa: E402
+from dampersim.discrepancy.fitting import ESTIMATE_LOG_SD, UNCALIBRATED, direction_step, uncalibrated_systems  # noqa: E402
 from dampersim.discrepancy.synth import synthesize  # noqa: E402
 from dampersim.parameters import default_parameters  # noqa: E402
 from dampersim.parameters.io import named_values  # noqa: E402
@@ -87,7 +87,7 @@ def truth_coordinates(applied: dict, system, directions: dict, log_sd: float) ->
     changes against ``system`` (``applied``: dotted parameter -> the truth's value, as
     synthesize reports them; parameters it does not name are the system's own) projected on
     each direction's move of :func:`dampersim.discrepancy.fitting.uncalibrated_systems`
-    (log_sd / sqrt(len(w)) times the weights w, each +-1). Not what the fitted amplitudes
+    (:func:`dampersim.discrepancy.fitting.direction_step` times the weights w, each +-1). Not what the fitted amplitudes
     should read: those are posterior means, shrunk where the data see a direction weakly
     (:func:`correlated_chi2`'s "truth_expected" applies that shrinkage), and the verdict's
     model is calibrated, so the calibration factors may have taken up part of a direction's
@@ -95,7 +95,7 @@ def truth_coordinates(applied: dict, system, directions: dict, log_sd: float) ->
     base = named_values(system)
     out = {}
     for name, w in directions.items():
-        step = log_sd / math.sqrt(len(w))
+        step = direction_step(w, log_sd)
         t = {n: math.log(float(applied.get(n, base[n])) / float(base[n])) for n in w if n in base}
         out[name] = sum(w[n] * t[n] for n in t) / (step * sum(w[n] ** 2 for n in t)) if t else math.nan
     return out
@@ -216,14 +216,14 @@ def _odd_even(name: str, up, down, y0) -> dict:
     return {name: 0.5 * (up - down), f"{name}:even": 0.5 * (up + down) - y0}
 
 
-def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int, system=None):
+def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int):
     """({column: complex change (points, orders)}, failed runs): each direction's odd and even
     parts (:func:`_odd_even`) from the model moved ``log_sd`` up and down along it
-    (:func:`dampersim.discrepancy.fitting.uncalibrated_systems`) at ``system`` (default: the
-    diagnosis's, the default set), driven by every torsional point as the compare step drives
-    it; ``y0`` is that step's map at ``system``. A failed run's cells are NaN (read as no
+    (:func:`dampersim.discrepancy.fitting.uncalibrated_systems`) at the default set (the
+    diagnosis's when it is given none), driven by every torsional point as the compare step
+    drives it; ``y0`` is that step's map. A failed run's cells are NaN (read as no
     change by :func:`correlated_chi2`) and counted."""
-    moved = uncalibrated_systems(system or default_parameters(), directions, log_sd)
+    moved = uncalibrated_systems(default_parameters(), directions, log_sd)
     with drive.Runner(workers) as runner:
         maps = drive.coefficients_of_sets(runner, [s for _, pair in moved for s in pair], camp.torsional)
     out = {}
@@ -333,26 +333,25 @@ def correlated_chi2(terms: dict, compare: list, lik, y, rows, nuisance, extra: d
         cov = np.diag(diag) if c is None else np.diag(diag) + c @ c.T
         return float(r @ np.linalg.solve(cov, r) / len(r))
 
-    amp, cov = posterior_amplitudes(cols, diag_cell, r)
+    def global_reading(c, names):  # one amplitude per column for the whole campaign
+        amp, cov = posterior_amplitudes(c, diag_cell, r)
+        got = {"global": chi(diag_cell, c), "amplitudes": dict(zip(names, map(float, amp))),
+               "amplitude_sd": dict(zip(names, map(float, np.sqrt(np.diag(cov))))),
+               "amplitude_check": prior_check(amp, cov)}
+        if truth is not None:
+            got["truth_expected"] = truth_expected(names, cov, truth)
+        return got
+
     size = {}
     for term in ("model", "input", "uncalibrated"):
         summed = sum(float(np.sum(np.abs(v[rows]) ** 2)) for k, v in u.items() if k.split(":")[0] == term)
         size[term] = summed / max(float(np.sum(np.asarray(terms[term])[rows])), 1e-300)
-    out = {"diagonal": chi(diag_all), "global": chi(diag_cell, cols),
+    out = {"diagonal": chi(diag_all), **global_reading(cols, list(u)),
            "per_point": chi(diag_cell, np.column_stack(cols_point)), "per_cell_terms_only": chi(diag_cell),
-           "amplitudes": dict(zip(u, map(float, amp))), "size": size,
-           "amplitude_sd": dict(zip(u, map(float, np.sqrt(np.diag(cov))))), "amplitude_check": prior_check(amp, cov)}
-    if truth is not None:
-        out["truth_expected"] = truth_expected(list(u), cov, truth)
+           "size": size}
     if extra:
         both = np.column_stack([cols] + [real(v) for v in extra.values()])
-        amp, cov = posterior_amplitudes(both, diag_cell, r)
-        names = [*u, *extra]
-        out.update({"global_with_extra": chi(diag_cell, both), "amplitudes_with_extra": dict(zip(names, map(float, amp))),
-                    "amplitude_sd_with_extra": dict(zip(names, map(float, np.sqrt(np.diag(cov))))),
-                    "amplitude_check_with_extra": prior_check(amp, cov)})
-        if truth is not None:
-            out["truth_expected_with_extra"] = truth_expected(names, cov, truth)
+        out.update({f"{k}_with_extra": v for k, v in global_reading(both, [*u, *extra]).items()})
     return out
 
 

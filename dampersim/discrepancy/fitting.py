@@ -76,6 +76,13 @@ def calibrated_system(system, x: np.ndarray):
     return with_updates(system, upd, check=False)
 
 
+def direction_step(direction: dict, log_sd: float = ESTIMATE_LOG_SD) -> float:
+    """The log move per unit weight of one standard uncertainty along ``direction``
+    ({dotted parameter: weight +-1}): log_sd / sqrt(len(direction)), so that a split of two
+    parameters, each of standard uncertainty log_sd, moves by its own standard uncertainty."""
+    return log_sd / math.sqrt(len(direction))
+
+
 def uncalibrated_systems(system, directions=None, log_sd: float = ESTIMATE_LOG_SD) -> list:
     """``system`` moved one standard uncertainty up and down along each direction of
     ``directions`` ({name: {dotted parameter: weight +-1}}, default UNCALIBRATED): a list of
@@ -84,12 +91,12 @@ def uncalibrated_systems(system, directions=None, log_sd: float = ESTIMATE_LOG_S
     ESTIMATE_LOG_SD, each parameter's own standard uncertainty). Parameters the set does not
     have are skipped; rig elements are named as :func:`with_updates` names them
     (``rig.elements.gearbox.inertia``)."""
-    flat = named_values(system)
+    values = named_values(system)
     out = []
     for name, direction in (UNCALIBRATED if directions is None else directions).items():
-        step = log_sd / math.sqrt(len(direction))
-        moved = [with_updates(system, {n: float(flat[n]) * math.exp(sign * w * step)
-                                       for n, w in direction.items() if n in flat}, check=False)
+        step = direction_step(direction, log_sd)
+        moved = [with_updates(system, {n: float(values[n]) * math.exp(sign * w * step)
+                                       for n, w in direction.items() if n in values}, check=False)
                  for sign in (1.0, -1.0)]
         out.append((name, moved))
     return out
@@ -143,4 +150,4 @@ def _lstsq_bounded(J, r, x0):
 
 __all__ = ["CALIBRATION", "UNCALIBRATED", "ESTIMATE_LOG_SD", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS",
            "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "COARSE_SEGMENTS", "calibrated_system",
-           "uncalibrated_systems", "coarse_system"]
+           "direction_step", "uncalibrated_systems", "coarse_system"]
