@@ -50,7 +50,7 @@ import bench_discrepancy as B  # noqa: E402 - the benchmark's matrix and campaig
 
 from dampersim.discrepancy import diagnose as dg  # noqa: E402
 from dampersim.discrepancy import drive  # noqa: E402
-from dampersim.discrepancy import likelihood  # noqa: E402
+from dampersim.discrepancy import likelihood, model_terms  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
 from dampersim.discrepancy.fitting import ESTIMATE_LOG_SD, UNCALIBRATED, direction_step, uncalibrated_systems  # noqa: E402
 from dampersim.discrepancy.synth import synthesize  # noqa: E402
@@ -156,9 +156,9 @@ def whole_diagnosis(camp, workers: int, share: float, directions: dict | None = 
     columns at standard uncertainty ``log_sd`` (:func:`direction_changes`, two runs per point
     and direction after the diagnosis); ``truth``: :func:`truth_coordinates` for
     :func:`correlated_chi2`."""
-    real_terms, real_chi, real_sets = (likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2,
-                                       drive.coefficients_of_sets)
-    terms, calls, compare = {}, [], []
+    real_terms, real_chi = likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2
+    real_uncertainty, real_measure = dg.uncertainty, model_terms.measure
+    terms, calls, compare, measured = {}, [], [], []
 
     def spy_terms(*args, **kwargs):
         out = real_terms(*args, **kwargs)
@@ -171,16 +171,21 @@ def whole_diagnosis(camp, workers: int, share: float, directions: dict | None = 
         calls.append((value, self, y, rows, nuisance))
         return value
 
-    def spy_sets(*args, **kwargs):  # the compare step's four maps come first (diagnose.diagnose, step 1)
-        out = real_sets(*args, **kwargs)
-        if len(compare) < 4:
-            compare.append(out)
-        return out
+    def spy_uncertainty(repeat, meas_c, mains, t, rows=slice(None)):
+        # the model terms of the cell uncertainty: the last call's are the verdict's (at the
+        # calibrated factors when the calibration moved them; diagnose, step 2b)
+        compare[:] = compare_maps(t.at(np.arange(len(t.y))[rows]))
+        return real_uncertainty(repeat, meas_c, mains, t, rows)
+
+    def spy_measure(runner, system, points, y):
+        measured.append(system)
+        return real_measure(runner, system, points, y)
 
     with (mock.patch.object(likelihood, "SIGMA_FLOOR_SHARE", share),
           mock.patch.object(likelihood, "sigma_variances", spy_terms),
           mock.patch.object(likelihood.Likelihood, "robust_reduced_chi2", spy_chi),
-          mock.patch.object(drive, "coefficients_of_sets", spy_sets)):
+          mock.patch.object(dg, "uncertainty", spy_uncertainty),
+          mock.patch.object(model_terms, "measure", spy_measure)):
         d_ = dg.diagnose(camp, workers=workers, recommend=False).to_json()
     top = d_["likelihood"]["reduced_chi2_held_out"]
     # the verdict's call: the last whose value is the one the document reports (every call is
@@ -198,7 +203,8 @@ def whole_diagnosis(camp, workers: int, share: float, directions: dict | None = 
     else:
         extra = None
         if directions:
-            extra, failed = direction_changes(camp, compare[0][0], directions, log_sd, workers)
+            extra, failed = direction_changes(camp, compare[0][0], directions, log_sd, workers,
+                                              measured[-1] if measured else None)
             cells["extra_failed_runs"] = failed
         cells["correlated"] = _rounded(correlated_chi2(terms, compare, lik, y, rows, nuisance, extra, truth))
     return d_, cells
@@ -216,14 +222,22 @@ def _odd_even(name: str, up, down, y0) -> dict:
     return {name: 0.5 * (up - down), f"{name}:even": 0.5 * (up + down) - y0}
 
 
-def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int):
+def compare_maps(t) -> list:
+    """The four maps :func:`systematic_changes` reads, from a
+    :class:`~dampersim.discrepancy.model_terms.ModelTerms`: y, the coarse model, the input moved
+    up then down, each UNCALIBRATED direction moved + then -."""
+    return [t.y[None], t.coarse[None], np.concatenate([t.input_up, t.input_down])[None], np.asarray(t.uncalibrated)]
+
+
+def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int, system=None):
     """({column: complex change (points, orders)}, failed runs): each direction's odd and even
     parts (:func:`_odd_even`) from the model moved ``log_sd`` up and down along it
-    (:func:`dampersim.discrepancy.fitting.uncalibrated_systems`) at the default set (the
-    diagnosis's when it is given none), driven by every torsional point as the compare step
-    drives it; ``y0`` is that step's map. A failed run's cells are NaN (read as no
-    change by :func:`correlated_chi2`) and counted."""
-    moved = uncalibrated_systems(default_parameters(), directions, log_sd)
+    (:func:`dampersim.discrepancy.fitting.uncalibrated_systems`) at ``system`` (the set the
+    verdict's model terms were measured at, :func:`whole_diagnosis`; the default set when
+    None), driven by every torsional point as the diagnosis drives it; ``y0`` is that set's
+    map. A failed run's cells are NaN (read as no change by :func:`correlated_chi2`) and
+    counted."""
+    moved = uncalibrated_systems(system or default_parameters(), directions, log_sd)
     with drive.Runner(workers) as runner:
         maps = drive.coefficients_of_sets(runner, [s for _, pair in moved for s in pair], camp.torsional)
     out = {}
@@ -233,16 +247,17 @@ def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int):
 
 
 def systematic_changes(compare: list, n: int) -> dict:
-    """{column name: complex change (points, orders)} of the compare step's systematic terms
-    (diagnose step 1's four maps: y0, the coarse model, the input moved up then down, each
-    UNCALIBRATED direction moved + then -): the discretisation check y_coarse - y0, the input
-    channel's (y_up - y_down) / 2, and per uncalibrated direction its odd part (y+ - y-) / 2
-    and even part (y+ + y-) / 2 - y0. The term's cell variance in the diagnosis
-    (likelihood.sigma_variances) is |change|^2 for the first two and |odd|^2 + |even|^2 for
-    the third, so the columns carry the same sizes as the variances they replace."""
+    """{column name: complex change (points, orders)} of the verdict's model terms
+    (:func:`compare_maps`: y0, the coarse model, the input moved up then down, each
+    UNCALIBRATED direction moved + then -): the discretisation check y_coarse - y0, and for
+    the input channel and per uncalibrated direction the odd part (y+ - y-) / 2 and even part
+    (y+ + y-) / 2 - y0 of the move. The term's cell variance in the diagnosis
+    (likelihood.sigma_variances, model_terms) is |change|^2 for the first and
+    |odd|^2 + |even|^2 summed over the directions for the others, so the columns carry the
+    same sizes as the variances they replace."""
     y0, y_coarse, y_moved, y_unc = (np.asarray(c) for c in compare)
     y0, y_in = y0[0], y_moved[0]
-    out = {"model": y_coarse[0] - y0, "input": 0.5 * (y_in[:n] - y_in[n:])}
+    out = {"model": y_coarse[0] - y0, **_odd_even("input", y_in[:n], y_in[n:], y0)}
     for k, name in enumerate(UNCALIBRATED):
         out.update(_odd_even(f"uncalibrated:{name}", y_unc[2 * k], y_unc[2 * k + 1], y0))
     return out

@@ -273,6 +273,9 @@ def pulsation_cost(coupled: bool = False, runs: int = 1, system=None, generator=
 DIAGNOSIS_FACTORS = 6  # calibrated log scale factors (CALIBRATION)
 DIAGNOSIS_COMPARE_RUNS = 4 + 2 * 3  # per point: as given, coarse, input moved up and down (input_mean_sd),
 # and the set moved up and down along each of the three directions the calibration cannot follow
+#: per point at the calibrated set: the compare step's checks again, without the set's own run
+#: (diagnose, step 2b; model_terms.RUNS_PER_POINT)
+DIAGNOSIS_RECHECK_RUNS = DIAGNOSIS_COMPARE_RUNS - 1
 DIAGNOSIS_SCAN = 4  # coarse-scan steps per factor (CAL_SCAN)
 DIAGNOSIS_ITERATIONS = 6  # Gauss-Newton iterations (calibration_iterations)
 DIAGNOSIS_DERIVATIVE_STEPS = 2  # sensitivity steps an iteration may try in turn (fitting.CAL_DERIVATIVE_STEPS)
@@ -309,7 +312,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     and the set moved up and down along the three directions the calibration cannot
     follow), coarse scan and Gauss-Newton (each iteration with up to two sensitivity steps)
     on the training points, the
-    held-out check, a screen per candidate from two starts, the shortlist's fits from
+    held-out check, the compare step's checks again at the calibrated set with one more
+    Gauss-Newton step and its held-out check, a screen per candidate from two starts, the shortlist's fits from
     both starts (with their shape parameters) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), a pair of
     effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
@@ -321,6 +325,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += DIAGNOSIS_FACTORS * DIAGNOSIS_SCAN * train
     runs += DIAGNOSIS_ITERATIONS * DIAGNOSIS_DERIVATIVE_STEPS * (DIAGNOSIS_FACTORS + DIAGNOSIS_STEP_TRIALS) * train
     runs += held
+    # the checks again at the calibrated set, one Gauss-Newton step under them and its held-out check
+    runs += DIAGNOSIS_RECHECK_RUNS * n + DIAGNOSIS_STEP_TRIALS * train + held
     runs += DIAGNOSIS_STARTS * int(n_candidates) * train
     shortlist = min(DIAGNOSIS_SHORTLIST, max(1, int(n_candidates)))
     runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + DIAGNOSIS_SHAPE_RUNS * train + held)

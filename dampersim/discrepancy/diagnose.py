@@ -22,14 +22,13 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, fitting, pickup, ramp_models, selection
+from dampersim.discrepancy import design, drive, fitting, model_terms, pickup, ramp_models, selection
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
                                            ESTIMATE_LOG_SD, GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, UNCALIBRATED,
-                                           _effect_grid, _lstsq_bounded, _resid, _rms, calibrated_system,
-                                           coarse_system, uncalibrated_systems)
-from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, input_mean_sd, measured_coefficients,
+                                           _effect_grid, _lstsq_bounded, _resid, _rms, calibrated_system)
+from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, measured_coefficients,
                                               residual_half_sigma, split_half_sigma)
 from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
@@ -52,6 +51,18 @@ def noise_level(dof: int) -> float:
     from scipy.stats import chi2
 
     return max(CHI2_NOISE, float(chi2.ppf(0.99, max(1, dof)) / max(1, dof)))
+
+
+def uncertainty(repeat, meas_c, mains, terms, rows=slice(None)) -> tuple:
+    """(complex standard deviation of every cell [N m], the displayed noise floor [N m]) from
+    the record terms ``repeat`` and ``mains`` and the model terms ``terms``
+    (:class:`~dampersim.discrepancy.model_terms.ModelTerms`) at its ``rows``. The floor is the
+    root sum of squares of each term's RMS over the campaign with the channels' gain tolerance:
+    for display; the verdict uses the likelihood."""
+    model, inp, unc = (np.asarray(a)[rows] for a in (terms.model_change, terms.input_change, terms.uncalibrated_change))
+    floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(np.abs(meas_c))) ** 2 + _rms(model) ** 2
+                      + _rms(inp) ** 2 + _rms(unc) ** 2 + _rms(mains) ** 2)
+    return cell_sigma(repeat, model, meas_c, mains, inp, unc), floor
 
 
 def diagnose(campaign, system=None, workers: int | None = None, progress=None, candidates=None,
@@ -85,35 +96,21 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
     with drive.Runner(workers) as runner:
         # 1) compare
         report(0.02, "compare: driving the model with every measured input torque")
-        err0, err_coarse, halves0 = {}, {}, ({} if repeatability == "residual" else None)
+        err0, halves0 = {}, ({} if repeatability == "residual" else None)
         y0 = drive.coefficients_of(runner, system, every, err0, halves0)
         if halves0 is None:
             repeat = np.array([split_half_sigma(p, drive.ORDERS) for p in every])
         else:  # the residual's halves (a failed run's point is left out below)
             repeat = np.array([residual_half_sigma(p, halves0[i], drive.ORDERS) if i in halves0
                                else np.full(len(drive.ORDERS), np.nan) for i, p in enumerate(every)])
-        # the model's own discretisation uncertainty, measured as the change of the order
-        # coefficients when the same drive runs with two thirds of the segments (for
-        # first-order convergence in 1/N that change is half the default model's own
-        # discretisation error: a scale, not a correction)
-        y_coarse = drive.coefficients_of(runner, coarse_system(system), every, err_coarse)
-        # the orders' sensitivity to the input channel's zero and gain (likelihood.input_mean_sd):
-        # the same drive with each point's input moved up and down by that uncertainty
-        err_in = {}
-        sd_in = [input_mean_sd(float(np.mean(p.input_torque))) for p in every]
-        moved = [drive.rezeroed(p, s * sd) for s in (-1.0, 1.0) for p, sd in zip(every, sd_in)]
-        y_moved = drive.coefficients_of(runner, system, moved, err_in)  # one map: up, then down
-        err_in = {i % len(every): msg for i, msg in err_in.items()}
-        y_in = (y_moved[:len(every)], y_moved[len(every):])
-        # the orders' sensitivity to what the calibration cannot follow (fitting.UNCALIBRATED):
-        # the same drive with the set moved one standard uncertainty up and down along each direction
-        moved_sets = [(direction, s) for direction, pair in uncalibrated_systems(system) for s in pair]
-        errs = [{} for _ in moved_sets]
-        y_unc = drive.coefficients_of_sets(runner, [s for _, s in moved_sets], every, errs)  # one map
-        unc_var = 0.5 * np.sum(np.abs(y_unc - y0) ** 2, axis=0)
-        err_unc = {}
-        for (direction, _), e in zip(moved_sets, errs):
-            err_unc.update({i: f"{direction.replace('_', ' ')}: {msg}" for i, msg in e.items() if i not in err_unc})
+        # the model-based terms at the set as given (model_terms): the discretisation check (two
+        # thirds of the segments; for first-order convergence in 1/N that change is half the
+        # model's own discretisation error: a scale, not a correction), the input channel's
+        # zero and gain (likelihood.input_mean_sd) and what the calibration cannot follow
+        # (fitting.UNCALIBRATED); measured again at the calibrated set below
+        terms0 = model_terms.measure(runner, system, every, y0)
+        err_coarse, err_in, err_unc = (terms0.errors[k] for k in ("coarse", "input", "uncalibrated"))
+        sd_in = terms0.input_sd
         left_out = {i: f"the model run with the parameter set as given failed ({err0[i]})" if i in err0 else
                     f"the discretisation check (two thirds of the spring segments) failed ({err_coarse[i]})"
                     if i in err_coarse else f"the input check (input moved by {sd_in[i]:.3g} N m) failed ({err_in[i]})"
@@ -127,21 +124,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         missing, message = shortfall(pts, len(campaign.ramps), [every[i].id for i in left_out])
         if missing:
             return _not_diagnosed(system, missing, message, problems, runner.count, t0)
-        y0, y_coarse, meas_c, repeat = y0[keep], y_coarse[keep], meas_c[keep], repeat[keep]
+        y0, meas_c, repeat = y0[keep], meas_c[keep], repeat[keep]
         meas = np.abs(meas_c)
-        model_diff = np.abs(y_coarse - y0)
-        offset_change = 0.5 * np.abs(y_in[1][keep] - y_in[0][keep])
-        unc_change = np.sqrt(unc_var[keep])
         held = [i for i in range(len(pts)) if i % 3 == 1]
         train = [i for i in range(len(pts)) if i % 3 != 1]
         ptr = [pts[i] for i in train]
         mains = pickup.pickup_sigma(pts, drive.ORDERS)
-        # the displayed noise floor [N m] (amplitudes): repeatability, gain tolerance,
-        # discretisation change, input channel, uncalibrated parameters and mains pick-up as RMS over the campaign;
-        # the verdict uses the likelihood
-        floor = math.sqrt(_rms(repeat) ** 2 + (GAIN_TOLERANCE * _rms(meas)) ** 2 + _rms(model_diff) ** 2
-                          + _rms(offset_change) ** 2 + _rms(unc_change) ** 2 + _rms(mains) ** 2)
-        sigma = cell_sigma(repeat, model_diff, meas_c, mains, offset_change, unc_change)
+        sigma, floor = uncertainty(repeat, meas_c, mains, terms0, keep)
         lik = Likelihood(meas_c, sigma, [p.speed for p in pts], drive.ORDERS)
 
         def cost(y, x):
@@ -212,6 +201,38 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         report(0.35, "calibrate: checking the calibrated model on held-out points")
         err_cal = {}
         y_cal_h = coeffs(cal, [pts[i] for i in held], err_cal)
+        # 2b) when the calibration moved the factors, the model-based terms again at the calibrated
+        # set: they follow where the model sits on its characteristic (model_terms), and the
+        # calibrated set sits nearer the rig than the set as given. A row whose checks fail there
+        # keeps the first measurement. Then one Gauss-Newton step of the factors under the new
+        # uncertainties, from the sensitivities the naming gets, kept when a real run lowers the
+        # objective
+        terms_cal = terms0.at(keep)
+        if np.any(x):
+            report(0.36, "calibrate: the uncertainty checks at the calibrated model")
+            y_cal = np.zeros_like(y0)
+            y_cal[train], y_cal[held] = y_tr, y_cal_h
+            terms_cal = model_terms.measure(runner, cal, pts, y_cal)
+            failed_checks = sorted(terms_cal.failed_rows() - {held[j] for j in err_cal})
+            terms_cal = terms_cal.filled_from(terms0, keep)
+            problems += [drive.run_problem(pts[i], "a check of the calibrated model (the discretisation, the input "
+                                           "channel or what the calibration cannot follow) failed; the point keeps "
+                                           "the checks of the parameter set as given") for i in failed_checks]
+            lik.sigma, floor = uncertainty(repeat, meas_c, mains, terms_cal)
+            lik.fit_nuisance(y_tr, train)
+            jac = columns(dys[steps[0]])
+            c_now = cost(y_tr, x)
+            dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
+            for frac in CAL_STEP_FRACTIONS:
+                xn = x + frac * dx
+                yn = coeffs(calibrated_system(system, xn), ptr)
+                if cost(yn, xn) < c_now:
+                    x, y_tr = xn, yn
+                    cal = calibrated_system(system, x)
+                    err_cal = {}
+                    y_cal_h = coeffs(cal, [pts[i] for i in held], err_cal)
+                    lik.fit_nuisance(y_tr, train)
+                    break
         y_cal = np.zeros_like(y0)
         y_cal[train], y_cal[held] = y_tr, y_cal_h
         dropped = {held[j] for j in err_cal}
@@ -237,7 +258,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # better than "none": a slightly slipping clutch); the others keep the screen's evidence
         shortlisted = [n for n in order if math.isfinite(screen[n]["rel_log_evidence"])][:shortlist] or order[:1]
         held_pts = [pts[i] for i in held]
-        bias_w = lik.vec(np.nan_to_num(y_coarse[train] - y0[train]), train)  # the discretisation check, standardised
+        # the discretisation check at the calibrated set, standardised
+        bias_w = lik.vec(np.nan_to_num(terms_cal.coarse[train] - terms_cal.y[train]), train)
         models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
                            "columns": [], "nuisance": lik.profile(y_tr, train)[1], "start": "calibrated"}}
         models["none"]["log_z"], models["none"]["cov"] = namer.evidence(models["none"], [], bias_w)

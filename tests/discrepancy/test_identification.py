@@ -21,7 +21,8 @@ import pytest
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import NAMES
-from dampersim.discrepancy.fitting import UNCALIBRATED
+from dampersim.discrepancy.fitting import CAL_STEP_FRACTIONS, UNCALIBRATED
+from dampersim.discrepancy.model_terms import RUNS_PER_POINT
 from dampersim.discrepancy.synth import synthesize
 from dampersim.parameters import at_thesis_segments
 
@@ -92,8 +93,13 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     # the control campaign (`--case ci-control --daq none`, commit 341837a); neither calibration needed the
     # second derivative step (fitting.CAL_DERIVATIVE_STEPS), whose runs this bound leaves out. With "none"
     # run at the factors each fit found (naming.Namer.recalibrate) the same commands give 756 and 777 runs
-    # (commit b14cbb4); the bound is this campaign's
-    assert d.simulations <= 700 + (2 + 2 * len(UNCALIBRATED)) * len(POINTS)
+    # (commit b14cbb4). Since the model terms are measured again at the calibrated factors
+    # (model_terms.RUNS_PER_POINT per point) with one Gauss-Newton step under them (up to three
+    # trials on the training points and one held-out check) this campaign took 792; the bound is
+    # this campaign's
+    train, held = len(POINTS) - len(POINTS[1::3]), len(POINTS[1::3])
+    recheck = RUNS_PER_POINT * len(POINTS) + len(CAL_STEP_FRACTIONS) * train + held
+    assert d.simulations <= 700 + (2 + 2 * len(UNCALIBRATED)) * len(POINTS) + recheck
 
 
 @pytest.mark.slow

@@ -104,29 +104,50 @@ def _campaign():
 
 
 def _spy_on_cell_sigma(monkeypatch, dg):
-    """Record the terms diagnose passes to cell_sigma (the returned dict's "repeat", "offset",
-    "pickup" and "uncalibrated") and pass everything on."""
-    seen = {}
+    """Record the terms diagnose passes to cell_sigma and pass everything on: the returned
+    dict's "repeat", "offset", "pickup" and "uncalibrated" are the last call's (the terms the
+    verdict reads: at the calibrated factors when the calibration moved them), its "calls"
+    every call's in turn (the first: at the parameter set as given)."""
+    seen = {"calls": []}
     real = dg.cell_sigma
 
     def spy(repeat, model_change, meas, pickup=None, offset_change=None, uncalibrated=None):
-        seen["offset"], seen["pickup"], seen["uncalibrated"] = offset_change, pickup, uncalibrated
-        seen["repeat"] = repeat
+        call = {"offset": offset_change, "pickup": pickup, "uncalibrated": uncalibrated, "repeat": repeat,
+                "model": model_change}
+        seen.update(call)
+        seen["calls"].append(call)
         return real(repeat, model_change, meas, pickup, offset_change, uncalibrated)
 
     monkeypatch.setattr(dg, "cell_sigma", spy)
     return seen
 
 
+def _spy_on_measured_sets(monkeypatch):
+    """The parameter sets model_terms.measure is called with, in turn."""
+    from dampersim.discrepancy import model_terms
+
+    sets, real = [], model_terms.measure
+
+    def spy(runner, system, points, y):
+        sets.append(system)
+        return real(runner, system, points, y)
+
+    monkeypatch.setattr(model_terms, "measure", spy)
+    return sets
+
+
 def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(monkeypatch):
-    """diagnose passes cell_sigma half the change of every point's coefficients when its input
-    moves up and down by likelihood.input_mean_sd of its mean torque: with the stand-in's
-    1 % per N m that is that many per cent of each coefficient. Without the wiring the
-    captured term would be None or 0."""
+    """diagnose passes cell_sigma the root mean square of the two changes of every point's
+    coefficients when its input moves up and down by likelihood.input_mean_sd of its mean
+    torque: with the stand-in's 1 % per N m (linear, so both changes are alike) that is that
+    many per cent of each coefficient, first at the parameter set as given, then at the
+    calibrated factors. Without the wiring the captured term would be None or 0; without the
+    second measurement the last call would carry the first set's coefficients."""
     from dampersim.discrepancy import diagnose as dg
     from dampersim.discrepancy.likelihood import input_mean_sd
 
     seen = _spy_on_cell_sigma(monkeypatch, dg)
+    sets = _spy_on_measured_sets(monkeypatch)
     monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
     camp = _campaign()
     d = dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
@@ -135,7 +156,12 @@ def test_the_diagnosis_carries_the_input_offset_check_into_the_cell_uncertainty(
     system = drive.diagnosis_system(dg.default_parameters())
     unmoved = np.array([F.fake_model()(system, p)["coefficients"] for p in camp.torsional])
     sd = np.array([[input_mean_sd(float(np.mean(p.input_torque)))] for p in camp.torsional])
-    assert np.asarray(seen["offset"]) == pytest.approx(0.01 * sd * np.abs(unmoved), rel=1e-9)
+    # rel 1e-9: the same arithmetic in another order (the stand-in is exact, no simulation)
+    assert np.asarray(seen["calls"][0]["offset"]) == pytest.approx(0.01 * sd * np.abs(unmoved), rel=1e-9)
+    assert len(sets) == len(seen["calls"]) == 2 and sets[0] == dg.default_parameters()
+    calibrated = np.array([F.fake_model()(drive.diagnosis_system(sets[1]), p)["coefficients"] for p in camp.torsional])
+    assert np.abs(np.abs(calibrated) - np.abs(unmoved)).max() > 1e-3  # the calibration moved the orders
+    assert np.asarray(seen["offset"]) == pytest.approx(0.01 * sd * np.abs(calibrated), rel=1e-9)
     # the displayed noise floor carries the term as a root sum of squares: against the same
     # stand-in without the input sensitivity (which gives the same unmoved orders)
     with_term, rms = d.noise_floor_nm, float(np.sqrt(np.mean(np.asarray(seen["offset"]) ** 2)))
@@ -163,8 +189,12 @@ def test_the_diagnosis_passes_the_mains_pickup_to_the_cell_uncertainty(monkeypat
     from dampersim.discrepancy import diagnose as dg
     from dampersim.discrepancy import pickup
 
+    from tests.discrepancy import fake_rig as F
+
     seen = _spy_on_cell_sigma(monkeypatch, dg)
-    monkeypatch.setattr(drive, "simulate_point", _input_sensitive_model())
+    # the plain stand-in: no model term moves with the calibrated factors, which the pick-up
+    # shifts, so the two floors differ by the pick-up alone
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model())
     floors = {}
     for level in (0.0, 0.1):
         monkeypatch.setattr(pickup, "pickup_sigma", lambda pts, orders, v=level: np.full((len(pts), len(orders)), v))

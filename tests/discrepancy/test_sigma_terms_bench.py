@@ -25,20 +25,21 @@ def cz(rng, *shape):
 
 def case(seed=0, cell=0.1):
     """Terms (each cell's variance of each term about ``cell`` [N m^2]), a likelihood, model
-    coefficients y0 and the compare step's four maps, laid out as diagnose's step 1 makes
-    them, built from known changes: (maps, {column: change})."""
+    coefficients y0 and the four maps of the model terms, laid out as bench.compare_maps
+    makes them, built from known changes: (maps, {column: change})."""
     rng = np.random.default_rng(seed)
     meas = cz(rng, N, K)
     terms = {t: cell * (0.1 + rng.random((N, K))) for t in TERMS}
     lik = Likelihood(meas, np.sqrt(sum(terms.values())), np.full(N, 150.0), np.arange(1, K + 1))
     y0 = meas + 0.1 * cz(rng, N, K)
-    change = {"model": 0.1 * cz(rng, N, K), "input": 0.1 * cz(rng, N, K)}
+    change = {"model": 0.1 * cz(rng, N, K), "input": 0.1 * cz(rng, N, K), "input:even": 0.05 * cz(rng, N, K)}
     unc = []
     for name in UNCALIBRATED:
         odd, even = 0.1 * cz(rng, N, K), 0.05 * cz(rng, N, K)
         change[f"uncalibrated:{name}"], change[f"uncalibrated:{name}:even"] = odd, even
         unc += [y0 + even + odd, y0 + even - odd]  # moved +, then -
-    y_in = np.concatenate([y0 + change["input"], y0 - change["input"]])  # the input moved up, then down
+    odd, even = change["input"], change["input:even"]
+    y_in = np.concatenate([y0 + even + odd, y0 + even - odd])  # the input moved up, then down
     maps = [y0[None], (y0 + change["model"])[None], y_in[None], np.stack(unc)]
     return terms, lik, y0, maps, change
 
@@ -75,7 +76,7 @@ def test_the_sizes_compare_the_columns_with_the_variances_they_replace(bench):
     u = bench.systematic_changes(maps, N)
     # the diagnosis's own variances of the three systematic terms (likelihood.sigma_variances)
     terms["model"] = np.abs(u["model"]) ** 2
-    terms["input"] = np.abs(u["input"]) ** 2
+    terms["input"] = np.abs(u["input"]) ** 2 + np.abs(u["input:even"]) ** 2
     terms["uncalibrated"] = sum(np.abs(v) ** 2 for k, v in u.items() if k.startswith("uncalibrated"))
     got = bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu)
     assert got["size"] == pytest.approx({"model": 1.0, "input": 1.0, "uncalibrated": 1.0}, rel=1e-12)
@@ -153,16 +154,23 @@ def test_the_cell_breakdown_by_order_and_by_term_left_out(bench):
 
 
 def test_the_whole_diagnosis_reading_picks_the_verdicts_call_and_restores_what_it_patched(bench, monkeypatch):
-    # a stand-in diagnosis makes the calls the real one makes (diagnose.diagnose): the compare
-    # step's four maps, then a later map, the cell variances, then the held-out chi^2 of two
-    # fitted models, the verdict's last; the bench must read that one and undo its spies
+    # a stand-in diagnosis makes the calls the real one makes (diagnose.diagnose): the model
+    # terms at the set as given (for the kept rows), then at the calibrated set, each through
+    # diagnose.uncertainty, then the held-out chi^2 of two fitted models, the verdict's last; the
+    # bench must read the last terms and that call, and undo its spies
+    from dampersim.discrepancy import model_terms
+    from dampersim.discrepancy.model_terms import ModelTerms
+
     terms, lik, y0, maps, _ = case(seed=6)
     rows, nu = [1, 4, 7], np.array([0.01, 1e-4])
     other = y0[rows] + 0.3
-    maps_left = iter(maps + [y0[None]])
-    monkeypatch.setattr(drive, "coefficients_of_sets", lambda *a, **k: next(maps_left))
+    up, down = maps[2][0][:N], maps[2][0][N:]
+    last = ModelTerms(y0, maps[1][0], up, down, maps[3], [1.0] * N)
+    first = ModelTerms(*(np.concatenate([a, a[:1]]) for a in (y0 + 1, y0 + 1, y0, y0)),
+                       np.concatenate([maps[3], maps[3][:, :1]], axis=1), [1.0] * (N + 1))
     monkeypatch.setattr(likelihood, "sigma_variances", lambda *a, **k: terms)
-    patched = (drive.coefficients_of_sets, likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2)
+    patched = (likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2, dg.uncertainty,
+               model_terms.measure)
     seen = {}
 
     class Doc:
@@ -174,9 +182,9 @@ def test_the_whole_diagnosis_reading_picks_the_verdicts_call_and_restores_what_i
 
     def stand_in(camp, workers, recommend):
         seen["floor"] = likelihood.SIGMA_FLOOR_SHARE
-        for _ in range(5):
-            drive.coefficients_of_sets(None, [], [])
-        likelihood.sigma_variances()
+        z = np.zeros((N, K))
+        dg.uncertainty(z, lik.meas, z, first, list(range(N)))  # one point left out of N + 1
+        dg.uncertainty(z, lik.meas, z, last)
         lik.robust_reduced_chi2(other, rows, nu)
         return Doc(lik.robust_reduced_chi2(y0[rows], rows, nu))
 
@@ -184,12 +192,15 @@ def test_the_whole_diagnosis_reading_picks_the_verdicts_call_and_restores_what_i
     floor = likelihood.SIGMA_FLOOR_SHARE
     _, cells = bench.whole_diagnosis(None, 1, 0.123)
     assert seen["floor"] == 0.123 and likelihood.SIGMA_FLOOR_SHARE == floor
-    assert (drive.coefficients_of_sets, likelihood.sigma_variances,
-            likelihood.Likelihood.robust_reduced_chi2) == patched
+    assert (likelihood.sigma_variances, likelihood.Likelihood.robust_reduced_chi2, dg.uncertainty,
+            model_terms.measure) == patched
     plain = lik.reduced_chi2(y0[rows], rows, nu)
     assert cells["reduced_chi2"] == pytest.approx(plain, abs=5e-4)  # the verdict's model, not the other
     assert cells["correlated"]["diagonal"] == pytest.approx(plain, abs=5e-4)
-    assert cells["correlated"]["size"]["input"] > 0  # read from the third of the compare step's maps
+    # read from the last terms (the first's input does not move); printed to three decimals
+    expected = bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu)
+    assert cells["correlated"]["size"]["input"] == pytest.approx(expected["size"]["input"], abs=5e-4)
+    assert cells["correlated"]["size"]["input"] > 0
 
 
 def test_truth_coordinates_by_hand(bench):

@@ -10,7 +10,7 @@ from dampersim.discrepancy import drive, tracking
 from dampersim.discrepancy.fitting import ESTIMATE_LOG_SD
 from dampersim.discrepancy.likelihood import residual_half_sigma
 from tests.discrepancy import fake_rig as F
-from tests.discrepancy.test_input_channel import _campaign, _spy_on_cell_sigma
+from tests.discrepancy.test_input_channel import _campaign, _spy_on_cell_sigma, _spy_on_measured_sets
 
 EXPONENT = 0.5  # the stand-in's orders follow the tertiary inertia as J_ter^0.5
 
@@ -38,15 +38,19 @@ def test_the_diagnosis_carries_the_uncalibrated_parameters_into_the_cell_uncerta
     from dampersim.discrepancy import diagnose as dg
 
     seen = _spy_on_cell_sigma(monkeypatch, dg)
+    sets = _spy_on_measured_sets(monkeypatch)
     monkeypatch.setattr(drive, "simulate_point", _tertiary_sensitive_model())
     camp = _campaign()
     dg.diagnose(camp, workers=1, candidates=["turbine_drag"], recommend=False)
-    system = drive.diagnosis_system(dg.default_parameters())
-    unmoved = np.abs(np.array([F.fake_model()(system, p)["coefficients"] for p in camp.torsional]))
     up, down = math.exp(EXPONENT * ESTIMATE_LOG_SD) - 1.0, math.exp(-EXPONENT * ESTIMATE_LOG_SD) - 1.0
     share = math.sqrt(0.5 * (up ** 2 + down ** 2))
+    # first at the parameter set as given, then at the calibrated factors (model_terms);
     # rel 1e-9: the same arithmetic in another order (the stand-in is exact, no simulation)
-    assert np.asarray(seen["uncalibrated"]) == pytest.approx(share * unmoved, rel=1e-9)
+    assert len(sets) == len(seen["calls"]) == 2
+    for s, call in zip(sets, seen["calls"]):
+        unmoved = np.abs(np.array([F.fake_model()(drive.diagnosis_system(s), p)["coefficients"]
+                                   for p in camp.torsional]))
+        assert np.asarray(call["uncalibrated"]) == pytest.approx(share * unmoved, rel=1e-9)
 
 
 def test_a_point_whose_uncalibrated_check_fails_is_left_out_and_reported(monkeypatch):

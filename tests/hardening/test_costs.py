@@ -152,6 +152,10 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_FACTORS == len(dg.CALIBRATION)
     # as given, coarse, input moved up and down, the set moved up and down along each uncalibrated direction
     assert costs.DIAGNOSIS_COMPARE_RUNS == 4 + 2 * len(dg.UNCALIBRATED)
+    # the same checks again at the calibrated factors (model_terms), without the set's own run
+    from dampersim.discrepancy import model_terms
+
+    assert costs.DIAGNOSIS_RECHECK_RUNS == model_terms.RUNS_PER_POINT == costs.DIAGNOSIS_COMPARE_RUNS - 1
     assert costs.DIAGNOSIS_SCAN == len(dg.CAL_SCAN)
     assert costs.DIAGNOSIS_DERIVATIVE_STEPS == len(dg.fitting.CAL_DERIVATIVE_STEPS)
     assert costs.DIAGNOSIS_STEP_TRIALS == len(dg.CAL_STEP_FRACTIONS)
@@ -169,8 +173,10 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_RAMP_DETECT == len(design.RAMP_PROTOCOLS) * len(EFFECTS["clutch_slip"].magnitudes)
     assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9
     # 12 points: 8 training, 4 held out (every third)
-    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 16 * 8 + 3 * (2 * 17 * 8 + 3 * 8 + 4)
-                                           + 3 * 8 + 4 + 15 * 8 + 4 + 3 * 8 * 8)
+    # (the recheck at the calibrated factors: 9 runs per point, one Gauss-Newton step's three
+    # trials on the training points and its held-out check)
+    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 16 * 8
+                                           + 3 * (2 * 17 * 8 + 3 * 8 + 4) + 3 * 8 + 4 + 15 * 8 + 4 + 3 * 8 * 8)
 
 
 def test_budgets_read_the_environment_at_call_time(monkeypatch):

@@ -1,0 +1,78 @@
+"""The model-based uncertainty terms (model_terms): their arithmetic, and the diagnosis's second
+measurement of them at the calibrated factors (stand-in model, no simulation)."""
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import drive
+from dampersim.discrepancy.model_terms import ModelTerms
+from tests.discrepancy import fake_rig as F
+from tests.discrepancy.test_input_channel import _campaign, _spy_on_cell_sigma
+
+ORDERS = len(drive.ORDERS)
+
+
+def _terms(y, up, down, unc=None):
+    y = np.asarray(y, dtype=complex)
+    unc = np.stack([y, y]) if unc is None else np.asarray(unc, dtype=complex)
+    return ModelTerms(y, y + 0.1, np.asarray(up, dtype=complex), np.asarray(down, dtype=complex), unc,
+                      [1.0] * len(y))
+
+
+def test_the_input_term_is_half_the_change_for_a_linear_response_and_survives_a_bend():
+    """Linear in the mean torque: the two one-sided changes are alike, and their RMS is half the
+    change from down to up (the form used before). At an extremum of an order (a knee: both
+    moves lower it by the same 0.8 N m) half that difference is zero, the RMS is 0.8."""
+    y = np.full((2, ORDERS), 10.0 + 2.0j)
+    d = np.full((2, ORDERS), 0.3 - 0.4j)
+    linear = _terms(y, y + d, y - d)
+    # rel 1e-12: the same numbers in another order
+    assert linear.input_change == pytest.approx(0.5 * np.abs((y + d) - (y - d)), rel=1e-12)
+    bent = _terms(y, y - 0.8, y - 0.8)
+    assert 0.5 * np.abs(bent.input_up - bent.input_down) == pytest.approx(np.zeros((2, ORDERS)), abs=1e-12)
+    assert bent.input_change == pytest.approx(np.full((2, ORDERS), 0.8), rel=1e-12)
+
+
+def test_the_uncalibrated_term_sums_the_directions_mean_squares():
+    y = np.full((1, ORDERS), 5.0 + 0j)
+    unc = np.stack([y + 0.3, y - 0.3, y + 0.4j, y + 0.4j])  # direction 1 up, down; direction 2 up, down
+    t = _terms(y, y, y, unc)
+    # sqrt(0.5 (0.09 + 0.09 + 0.16 + 0.16)) = 0.5; rel 1e-12: exact arithmetic
+    assert t.uncalibrated_change == pytest.approx(np.full((1, ORDERS), 0.5), rel=1e-12)
+    assert t.model_change == pytest.approx(np.full((1, ORDERS), 0.1), rel=1e-12)
+
+
+def test_failed_rows_are_filled_from_the_other_measurement_and_at_picks_rows():
+    first = _terms(np.full((3, ORDERS), 1.0), np.full((3, ORDERS), 1.5), np.full((3, ORDERS), 0.5))
+    second = _terms(np.full((2, ORDERS), 2.0), np.full((2, ORDERS), 2.1), np.full((2, ORDERS), 1.9))
+    second.y[1, 3] = np.nan  # its own run failed at row 1
+    second.errors = {"coarse": {0: "diverged"}}
+    assert second.failed_rows() == {0, 1}
+    filled = second.filled_from(first, [2, 0])  # second's rows are first's rows 2 and 0
+    assert filled.failed_rows() == set()
+    assert filled.input_change == pytest.approx(np.full((2, ORDERS), 0.5), rel=1e-12)  # both rows from first
+    sub = first.at([2])
+    assert sub.y.shape == (1, ORDERS) and sub.uncalibrated.shape == (2, 1, ORDERS)
+
+
+def test_a_check_that_fails_only_at_the_calibrated_factors_keeps_the_first_and_is_reported(monkeypatch):
+    """The stand-in's coarse check diverges at p3 once the calibration has moved the outer
+    springs: p3 stays in the diagnosis with the checks of the set as given, and problems say so."""
+    from dampersim.discrepancy import diagnose as dg
+
+    def fail(system, p):
+        coarse = system.solver.outer_segments < F.BASE.solver.outer_segments
+        moved = system.outer.spring.stiffness != F.BASE.outer.spring.stiffness
+        return "raise" if p.id == "p3" and coarse and moved else None
+
+    seen = _spy_on_cell_sigma(monkeypatch, dg)
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model(fail))
+    d = dg.diagnose(_campaign(), workers=1, candidates=["turbine_drag"], recommend=False)
+    assert d.verdict != dg.INSUFFICIENT and "p3" in {p["id"] for p in d.points}
+    assert [(q["point"], q["field"]) for q in d.problems] == [("p3", "model")]
+    assert "calibrated model" in d.problems[0]["message"] and "keeps the checks" in d.problems[0]["message"]
+    assert len(seen["calls"]) == 2
+    row = [p.id for p in _campaign().torsional].index("p3")
+    # rel 1e-12: the same row copied
+    assert np.asarray(seen["calls"][1]["model"])[row] == pytest.approx(np.asarray(seen["calls"][0]["model"])[row],
+                                                                       rel=1e-12)
