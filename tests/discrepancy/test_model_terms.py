@@ -76,3 +76,19 @@ def test_a_check_that_fails_only_at_the_calibrated_factors_keeps_the_first_and_i
     # rel 1e-12: the same row copied
     assert np.asarray(seen["calls"][1]["model"])[row] == pytest.approx(np.asarray(seen["calls"][0]["model"])[row],
                                                                        rel=1e-12)
+
+
+def test_the_model_terms_bench_summarises_rms_and_largest_per_point():
+    """bench/bench_model_terms.py's printed figures (docs/discrepancy.md quotes them)."""
+    from tests.discrepancy.benches import load_bench
+
+    bench = load_bench("bench_model_terms")
+    y = np.zeros((2, ORDERS), dtype=complex)
+    up = y.copy()
+    up[0, 0] = 3.0  # one order of one point moves by 3 N m when the input moves up, none when down
+    t = _terms(y, up, y)
+    meas = y + 0.5j
+    got = bench.summary(t, meas)
+    # input: sqrt(9 / 2) in one cell of eight -> RMS sqrt(9 / 16) = 0.75, largest 2.1213
+    assert got["input"] == [0.75, 0.0] and got["input_max"] == [pytest.approx(2.12132, abs=1e-5), 0.0]
+    assert got["model"] == [0.1, 0.1] and got["misfit"] == [0.5, 0.5]
