@@ -24,10 +24,11 @@ s / sqrt(2)):
 * **model**: the change of the model's coefficient when the same drive runs with two thirds
   of the spring segments (discretisation, and the physical scatter of chaotic orders, which
   moves by tens of per cent with any such change);
-* **input channel**: half the change of the model's coefficient when the same drive runs with
-  the measured input torque moved up and down by :func:`input_mean_sd` (the input channel's
-  zero and gain are not known better than that, and the drive's mean torque moves with
-  them; near a knee of the characteristic the orders follow the mean torque steeply);
+* **input channel**: the root mean square of the two changes of the model's coefficient when
+  the same drive runs with the measured input torque moved up and down by
+  :func:`input_mean_sd` (the input channel's zero and gain are not known better than that,
+  and the drive's mean torque moves with them; near a knee of the characteristic the orders
+  follow the mean torque steeply, and bend, so half the change from down to up can cancel);
 * **uncalibrated parameters**: the root mean square of the model's change when the same
   drive runs with the parameter set moved one standard uncertainty up and down along each
   direction the calibration cannot follow (:data:`~dampersim.discrepancy.fitting.UNCALIBRATED`:
@@ -37,6 +38,9 @@ s / sqrt(2)):
 * **mains pick-up** on the output channel where a mains line falls on an order, measured on
   the campaign's records where it falls between the orders (:mod:`dampersim.discrepancy.pickup`);
 * a floor of SIGMA_FLOOR_SHARE of the campaign's largest output order.
+
+The three model terms are measured by :mod:`dampersim.discrepancy.model_terms`, at the
+parameter set given and again at the calibrated one (the diagnosis, step 2b).
 
 The channels' relative gain and delay are nuisance parameters fitted with every model
 (:meth:`Likelihood.fit_nuisance`), each under a Gaussian prior: a skew between the channels
