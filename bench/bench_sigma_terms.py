@@ -178,7 +178,7 @@ def whole_diagnosis(camp, workers: int, share: float, directions: dict | None = 
         return real_uncertainty(repeat, meas_c, mains, t, rows)
 
     def spy_measure(runner, system, points, y):
-        measured.append(system)
+        measured.append((system, list(points), np.array(y)))
         return real_measure(runner, system, points, y)
 
     with (mock.patch.object(likelihood, "SIGMA_FLOOR_SHARE", share),
@@ -197,14 +197,18 @@ def whole_diagnosis(camp, workers: int, share: float, directions: dict | None = 
     cells = held_out_cells(terms, lik, y, rows, nuisance)
     n = len(lik.meas)
     if len(compare) < 4 or compare[0].shape[1] != n:
-        cells["correlated"] = "not computed: a point was left out, the compare step's rows do not align"
+        cells["correlated"] = "not computed: the verdict's model terms do not align with its likelihood's rows"
     elif compare[2].shape[1] != 2 * n or compare[3].shape[0] != 2 * len(UNCALIBRATED):
-        cells["correlated"] = "not computed: the compare step's maps are not y0, coarse, input, uncalibrated"
+        cells["correlated"] = "not computed: the model terms' maps are not y0, coarse, input, uncalibrated"
+    elif directions and (not measured or len(measured[-1][1]) != n):
+        cells["correlated"] = "not computed: a point was left out, the extra directions' rows would not align"
     else:
         extra = None
         if directions:
-            extra, failed = direction_changes(camp, compare[0][0], directions, log_sd, workers,
-                                              measured[-1] if measured else None)
+            # at the set and points the verdict's terms were last measured at, against that set's own
+            # coefficients (NaN where its run failed: no change is read there)
+            system, points, y_set = measured[-1]
+            extra, failed = direction_changes(points, y_set, directions, log_sd, workers, system)
             cells["extra_failed_runs"] = failed
         cells["correlated"] = _rounded(correlated_chi2(terms, compare, lik, y, rows, nuisance, extra, truth))
     return d_, cells
@@ -229,17 +233,17 @@ def compare_maps(t) -> list:
     return [t.y[None], t.coarse[None], np.concatenate([t.input_up, t.input_down])[None], np.asarray(t.uncalibrated)]
 
 
-def direction_changes(camp, y0, directions: dict, log_sd: float, workers: int, system=None):
+def direction_changes(points, y0, directions: dict, log_sd: float, workers: int, system=None):
     """({column: complex change (points, orders)}, failed runs): each direction's odd and even
     parts (:func:`_odd_even`) from the model moved ``log_sd`` up and down along it
     (:func:`dampersim.discrepancy.fitting.uncalibrated_systems`) at ``system`` (the set the
     verdict's model terms were measured at, :func:`whole_diagnosis`; the default set when
-    None), driven by every torsional point as the diagnosis drives it; ``y0`` is that set's
-    map. A failed run's cells are NaN (read as no change by :func:`correlated_chi2`) and
+    None), driven by each torsional point of ``points`` as the diagnosis drives it; ``y0`` is
+    that set's map. A failed run's cells are NaN (read as no change by :func:`correlated_chi2`) and
     counted."""
     moved = uncalibrated_systems(system or default_parameters(), directions, log_sd)
     with drive.Runner(workers) as runner:
-        maps = drive.coefficients_of_sets(runner, [s for _, pair in moved for s in pair], camp.torsional)
+        maps = drive.coefficients_of_sets(runner, [s for _, pair in moved for s in pair], points)
     out = {}
     for k, (name, _) in enumerate(moved):
         out.update(_odd_even(name, maps[2 * k], maps[2 * k + 1], y0))

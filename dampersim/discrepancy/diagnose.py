@@ -207,17 +207,14 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # keeps the first measurement. Then one Gauss-Newton step of the factors under the new
         # uncertainties, from the sensitivities the naming gets, kept when a real run lowers the
         # objective
-        terms_cal = terms0.at(keep)
+        terms_cal, kept_first = terms0.at(keep), {}
         if np.any(x):
             report(0.36, "calibrate: the uncertainty checks at the calibrated model")
             y_cal = np.zeros_like(y0)
             y_cal[train], y_cal[held] = y_tr, y_cal_h
-            terms_cal = model_terms.measure(runner, cal, pts, y_cal)
-            failed_checks = sorted(terms_cal.failed_rows() - {held[j] for j in err_cal})
-            terms_cal = terms_cal.filled_from(terms0, keep)
-            problems += [drive.run_problem(pts[i], "a check of the calibrated model (the discretisation, the input "
-                                           "channel or what the calibration cannot follow) failed; the point keeps "
-                                           "the checks of the parameter set as given") for i in failed_checks]
+            measured = model_terms.measure(runner, cal, pts, y_cal)
+            kept_first = measured.failure_texts()  # reported below, for the points that stay
+            terms_cal = measured.filled_from(terms0, keep)
             lik.sigma, floor = uncertainty(repeat, meas_c, mains, terms_cal)
             lik.fit_nuisance(y_tr, train)
             jac = columns(dys[steps[0]])
@@ -232,6 +229,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     err_cal = {}
                     y_cal_h = coeffs(cal, [pts[i] for i in held], err_cal)
                     lik.fit_nuisance(y_tr, train)
+                    jac = columns(dys[steps[0]])  # at the nuisance and robust weights the naming starts from
                     break
         y_cal = np.zeros_like(y0)
         y_cal[train], y_cal[held] = y_tr, y_cal_h
@@ -240,6 +238,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         problems += [drive.run_problem(pts[held[j]], f"the model run with the calibrated parameter set failed ({msg}); "
                                        "the point is left out of the verdict") for j, msg in err_cal.items()]
         held = [i for i in held if i not in dropped]
+        problems += [drive.run_problem(pts[i], f"a check at the calibrated parameter set failed ({why}); the point "
+                                       "keeps the uncertainty checks of the parameter set as given")
+                     for i, why in kept_first.items() if i not in dropped]
         if not held:
             return _not_diagnosed(system, ["held_out_points"], "not diagnosed: the calibrated model fails at every held-out"
                                   " point (see problems). Accepted: at least one held-out torsional point (every third) "
@@ -525,4 +526,4 @@ def _recommend(runner, models, post, detect, cands, pts, lik, campaign) -> list:
 __all__ = ["CALIBRATION", "UNCALIBRATED", "INSUFFICIENT", "REPEATABILITY", "decide", "MIN_TORSIONAL_POINTS",
            "MIN_SPEEDS", "SAME_SPEED_SHARE", "CHI2_NOISE", "Diagnosis", "diagnose", "locate", "calibrated_system",
            "shortfall", "speeds_of", "noise_level", "CAL_BOUND", "CAL_SCAN", "CAL_STEP_FRACTIONS", "COARSE_SEGMENTS",
-           "PRIOR_LOG_SD", "REFINE_EVALUATIONS", "_effect_grid", "_lstsq_bounded", "_resid", "with_effect"]
+           "PRIOR_LOG_SD", "REFINE_EVALUATIONS", "_effect_grid", "_lstsq_bounded", "_resid", "with_effect", "uncertainty"]

@@ -69,9 +69,18 @@ class ModelTerms:
         return np.sqrt(0.5 * np.sum(np.abs(self.uncalibrated - self.y) ** 2, axis=0))
 
     def failed_rows(self) -> set:
-        """Rows at which any of the runs failed, the set's own (a non-finite ``y``) among them."""
-        own = {i for i in range(len(self.y)) if not np.all(np.isfinite(self.y[i]))}
-        return own | {i for errs in self.errors.values() for i in errs}
+        """Rows at which any of the runs failed: a recorded error, or a non-finite cell of the
+        set's own coefficients or of any check (also after :meth:`at`, which drops the errors)."""
+        cells = [self.y, self.coarse, self.input_up, self.input_down, *self.uncalibrated]
+        bad = np.any([~np.all(np.isfinite(c), axis=1) for c in cells], axis=0)
+        return {int(i) for i in np.flatnonzero(bad)} | {i for errs in self.errors.values() for i in errs}
+
+    def failure_texts(self) -> dict:
+        """{row: what failed there} for every row of :meth:`failed_rows`."""
+        names = {"coarse": "the discretisation check", "input": "the input check",
+                 "uncalibrated": "the check of what the calibration cannot follow"}
+        return {i: "; ".join(f"{names.get(k, k)}: {errs[i]}" for k, errs in self.errors.items() if i in errs)
+                or "the set's own run" for i in sorted(self.failed_rows())}
 
     def at(self, rows) -> "ModelTerms":
         """These terms at the points ``rows`` only, without their errors."""

@@ -197,7 +197,8 @@ def test_the_whole_diagnosis_reading_picks_the_verdicts_call_and_restores_what_i
     plain = lik.reduced_chi2(y0[rows], rows, nu)
     assert cells["reduced_chi2"] == pytest.approx(plain, abs=5e-4)  # the verdict's model, not the other
     assert cells["correlated"]["diagonal"] == pytest.approx(plain, abs=5e-4)
-    # read from the last terms (the first's input does not move); printed to three decimals
+    # read from the last terms, not the first's (whose input moves alike up and down); printed
+    # to three decimals
     expected = bench.correlated_chi2(terms, maps, lik, y0[rows], rows, nu)
     assert cells["correlated"]["size"]["input"] == pytest.approx(expected["size"]["input"], abs=5e-4)
     assert cells["correlated"]["size"]["input"] > 0
@@ -301,11 +302,8 @@ def test_direction_changes_and_the_extra_columns(bench, monkeypatch):
     monkeypatch.setattr(drive, "Runner", Runner)
     monkeypatch.setattr(drive, "coefficients_of_sets", lambda runner, sets, points: moved[:len(sets)])
 
-    class Camp:
-        torsional = list(range(N))
-
     dirs = {"a": {"inertias.tertiary": 1.0}, "b": {"rig.elements.gearbox.inertia": 1.0}}
-    cols, failed = bench.direction_changes(Camp(), y0, dirs, 0.1, 1)
+    cols, failed = bench.direction_changes(list(range(N)), y0, dirs, 0.1, 1)
     assert list(cols) == ["a", "a:even", "b", "b:even"] and failed == 2
     assert np.max(np.abs(cols["a"] - odd)) < 1e-12 and np.max(np.abs(cols["a:even"] - even)) < 1e-12
     rows, nu = [0, 3, 6], np.array([0.01, 1e-4])
