@@ -38,12 +38,11 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_discrepancy as B  # noqa: E402 - the benchmark's matrix and campaign layout
+import bench_sigma_terms as S  # noqa: E402 - the benchmark's synthesis of a case
 
 from dampersim.discrepancy import drive, model_terms  # noqa: E402
-from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
 from dampersim.discrepancy.fitting import CALIBRATION, calibrated_system  # noqa: E402
 from dampersim.discrepancy.likelihood import measured_coefficients  # noqa: E402
-from dampersim.discrepancy.synth import synthesize  # noqa: E402
 from dampersim.parameters import default_parameters  # noqa: E402
 from dampersim.parameters.io import with_updates  # noqa: E402
 
@@ -81,22 +80,19 @@ def main(argv=None):
     if a.x is not None and not all(abs(v) <= 1.0 for v in a.x):
         ap.error("--x: accepted are log factors between -1 and 1")
     case, base = matrix[a.case], default_parameters()
-    spec = case["spec"]
     # the benchmark's 12 points are always synthesised, in its order: a record's noise, engine
     # harmonics and acquisition stream follow its place in the campaign, so that the records
     # are the ones the benchmark's diagnosis of the case saw; other ids asked for come after them
     bench_ids = B.point_ids(12, 0)
     points = a.points or bench_ids
     with tempfile.TemporaryDirectory() as d:
-        folder = os.path.join(d, "campaign")
-        doc = synthesize(folder, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
-                         noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
-                         points=bench_ids + [p for p in points if p not in bench_ids], record=1.0,
-                         workers=a.workers, daq=case["daq"])
-        by_id = {p.id: p for p in read_campaign(folder).torsional}
+        truth = {}
+        camp = S.campaign_of(case, os.path.join(d, "campaign"), a.workers, truth,
+                             points=bench_ids + [p for p in points if p not in bench_ids])
+        by_id = {p.id: p for p in camp.torsional}
     pts = [by_id[p] for p in points if p in by_id]
     meas = np.array([measured_coefficients(p, drive.ORDERS) for p in pts])
-    sets = {"estimate": base, "truth": truth_estimate(doc["perturbed"], base)}
+    sets = {"estimate": base, "truth": truth_estimate(truth["perturbed"], base)}
     if a.x is not None:
         sets["calibrated"] = calibrated_system(base, np.array(a.x))
     with drive.Runner(a.workers) as runner:

@@ -105,14 +105,16 @@ class _Stop(Exception):
     """Raised by the spy of :func:`diagnose_until` once the diagnosis has made the call watched."""
 
 
-def campaign_of(case, folder, workers: int, truth: dict | None = None):
-    """The case's campaign, synthesised into ``folder`` as the hard benchmark does;
-    ``truth``, when a dict is given, receives the synthesis's account of the truth
+def campaign_of(case, folder, workers: int, truth: dict | None = None, points=None):
+    """The case's campaign, synthesised into ``folder`` as the hard benchmark does (its 12
+    torsional points and one ramp, or the point ids ``points``: a record's noise and
+    acquisition stream follow its place in that list); ``truth``, when a dict is given,
+    receives the synthesis's account of the truth
     (:func:`dampersim.discrepancy.synth.synthesize`'s return, "perturbed" among it)."""
     spec = case["spec"]
     doc = synthesize(folder, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
                      noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
-                     points=B.point_ids(12, 1), record=1.0, workers=workers, daq=case["daq"])
+                     points=points or B.point_ids(12, 1), record=1.0, workers=workers, daq=case["daq"])
     if truth is not None:
         truth.update(doc)
     return read_campaign(folder)

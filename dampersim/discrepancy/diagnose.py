@@ -146,6 +146,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             dy[:] = np.nan_to_num((drive.coefficients_of_sets(runner, shifted, ptr) - y) / h, nan=0.0)
             return columns(dy)
 
+        def joined(y_train, y_held):
+            """Coefficients of every kept point from those of the training and held-out points."""
+            y = np.zeros_like(y0)
+            y[train], y[held] = y_train, y_held
+            return y
+
         def columns(dy):
             return np.column_stack([lik.vec(dy[k], train) for k in range(len(dy))])
 
@@ -210,9 +216,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         terms_cal, kept_first = terms0.at(keep), {}
         if np.any(x):
             report(0.36, "calibrate: the uncertainty checks at the calibrated model")
-            y_cal = np.zeros_like(y0)
-            y_cal[train], y_cal[held] = y_tr, y_cal_h
-            measured = model_terms.measure(runner, cal, pts, y_cal)
+            measured = model_terms.measure(runner, cal, pts, joined(y_tr, y_cal_h))
             kept_first = measured.failure_texts()  # reported below, for the points that stay
             terms_cal = measured.filled_from(terms0, keep)
             lik.sigma, floor = uncertainty(repeat, meas_c, mains, terms_cal)
@@ -233,8 +237,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     # exclude the truth by 0.02 % (docs/discrepancy.md, Known limits)
                     lik.fit_nuisance(y_tr, train)
                     break
-        y_cal = np.zeros_like(y0)
-        y_cal[train], y_cal[held] = y_tr, y_cal_h
+        y_cal = joined(y_tr, y_cal_h)
         dropped = {held[j] for j in err_cal}
         y_cal_h = y_cal_h[[j for j in range(len(held)) if j not in err_cal]]  # the held-out points that ran
         problems += [drive.run_problem(pts[held[j]], f"the model run with the calibrated parameter set failed ({msg}); "
