@@ -114,7 +114,7 @@ def campaign_of(case, folder, workers: int, truth: dict | None = None, points=No
     spec = case["spec"]
     doc = synthesize(folder, effects=[(n, dict(v)) for n, v in spec["effects"]], perturb=case["perturb"],
                      noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
-                     points=points or B.point_ids(12, 1), record=1.0, workers=workers, daq=case["daq"])
+                     points=B.point_ids(12, 1) if points is None else points, record=1.0, workers=workers, daq=case["daq"])
     if truth is not None:
         truth.update(doc)
     return read_campaign(folder)

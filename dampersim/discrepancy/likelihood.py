@@ -69,9 +69,11 @@ GAIN_PRIOR_SD = 0.03
 DELAY_PRIOR_SD = 5e-4
 #: standard uncertainty of the input torque channel's zero offset [N m] and relative gain
 #: [-]. The model is driven by the measured input torque, so both move the drive's mean
-#: torque. A 3 kN m transducer's zero moves by about 1.5 N m per 10 K (the synthetic DAQ
-#: draws +-2 N m); transducer and amplifier calibration leave about 1 % (the synthetic
-#: campaigns draw 1 % RMS). Away from the knees a gain error is what the calibration factors
+#: torque. A 3 kN m transducer's zero moves by about 1.5 N m per 10 K; transducer and
+#: amplifier calibration leave about 1 %. The synthetic DAQ (daq.random_corruption) draws
+#: narrower: uniform within +-2 N m and +-1 % (RMS 1.15 N m and 0.58 %; what that does to
+#: the controls' chi^2 is in docs/discrepancy.md, "What control/none/4's held-out chi^2 of
+#: 0.11 is made of"). Away from the knees a gain error is what the calibration factors
 #: and the output gain nuisance absorb together; near a knee of the damper's characteristic
 #: (the stops sit at fixed angles) the orders follow the mean torque steeply (the 18/8 set
 #: driven by a record of itself at 1800 rpm and 350 N m, tests/discrepancy/test_input_channel.py:
