@@ -152,6 +152,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             y[train], y[held] = y_train, y_held
             return y
 
+        def on_held_out(x):
+            """The calibrated system at log factors x, the held-out points' run failures {index in held:
+            message} and their coefficients."""
+            s, errors = calibrated_system(system, x), {}
+            return s, errors, coeffs(s, [pts[i] for i in held], errors)
+
         def columns(dy):
             return np.column_stack([lik.vec(dy[k], train) for k in range(len(dy))])
 
@@ -203,10 +209,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # taken again at the calibrated factors when the last iteration moved them with the shorter
         # step alone (so at most two sets per iteration in all, as costs.diagnosis_runs counts)
         jac = columns(dys[steps[0]]) if fresh else sensitivities(dys[steps[0]], steps[0], x, y_tr)
-        cal = calibrated_system(system, x)
         report(0.35, "calibrate: checking the calibrated model on held-out points")
-        err_cal = {}
-        y_cal_h = coeffs(cal, [pts[i] for i in held], err_cal)
+        cal, err_cal, y_cal_h = on_held_out(x)
         # 2b) when the calibration moved the factors, the model-based terms again at the calibrated
         # set: they follow where the model sits on its characteristic (model_terms), and the
         # calibrated set sits nearer the rig than the set as given. A row whose checks fail there
@@ -229,9 +233,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 yn = coeffs(calibrated_system(system, xn), ptr)
                 if cost(yn, xn) < c_now:
                     x, y_tr = xn, yn
-                    cal = calibrated_system(system, x)
-                    err_cal = {}
-                    y_cal_h = coeffs(cal, [pts[i] for i in held], err_cal)
+                    cal, err_cal, y_cal_h = on_held_out(x)
                     # the naming keeps the Jacobian standardised before this one step; standardising it
                     # again at the refitted weights moved the strict CI absorber's 90 % interval to
                     # exclude the truth by 0.02 % (docs/discrepancy.md, Known limits)
