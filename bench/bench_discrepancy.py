@@ -33,6 +33,7 @@ table at the end, or alone with ``--summary``.
     python bench/bench_discrepancy.py --list                                # the cases, nothing run
     python bench/bench_discrepancy.py --only pendulum_absorber --limit 1 --points 6 --record 0.6 --ramps 0
     python bench/bench_discrepancy.py --summary bench.jsonl                 # figures of a file
+    python bench/bench_discrepancy.py --summary a.jsonl b.jsonl             # ... of several together
     python bench/bench_discrepancy.py --matrix classic --only miscalibration --out classic.jsonl
 """
 
@@ -220,7 +221,9 @@ def main(argv=None):
                     "'calibration', 'rig_shaft', ...; classic: 'no_effect', 'miscalibration'), levels or case ids")
     ap.add_argument("--limit", type=int, help="run at most this many cases")
     ap.add_argument("--list", action="store_true", help="print the cases and their truths, run nothing")
-    ap.add_argument("--summary", metavar="FILE", help="print the figures of a results file, run nothing")
+    ap.add_argument("--summary", metavar="FILE", nargs="+",
+                    help="print the figures of one or more results files, run nothing (read in the order given: "
+                    "a case in several files counts once, by its last successful line)")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per effect (hard: 2, classic: 3)")
     ap.add_argument("--matrix-seed", type=int, default=0, help="hard: seed of the random truths and DAQ settings")
     ap.add_argument("--reduced", action="store_true", help="classic: one magnitude and one seed, fewer controls")
@@ -233,7 +236,10 @@ def main(argv=None):
                     help="skip the next-test design (its runs do not change any figure of the summary)")
     a = ap.parse_args(argv)
     if a.summary:
-        print(summary_table(summary(read_lines(a.summary))))
+        missing = [f for f in a.summary if not os.path.exists(f)]
+        if missing:
+            ap.error(f"--summary: no such file: {', '.join(missing)}")
+        print(summary_table(summary([r for f in a.summary for r in read_lines(f)])))
         return 0
     if a.matrix == "hard":
         cases = hard_cases(a.seeds or 2, a.matrix_seed)

@@ -22,6 +22,9 @@ from dampersim.discrepancy.effects import EFFECTS
 KINDS = ("effect", "pair", "control", "out_of_library")
 #: posterior probability at which a named model counts as claimed
 CLAIM_PROBABILITY = 0.9
+#: range of a control's held-out reduced chi^2 that reads as uncertainties neither inflated
+#: (below) nor optimistic (above): the one the diagnosis issue asks of the controls
+CONTROL_CHI2_RANGE = (0.5, 1.5)
 
 
 def latest(rows) -> tuple[list, int]:
@@ -111,8 +114,12 @@ def _share(k: int, n: int) -> dict:
     return {"count": int(k), "of": int(n), "share": (k / n) if n else None}
 
 
+def _finite(x) -> bool:
+    return x is not None and math.isfinite(float(x))
+
+
 def _spread(values) -> dict:
-    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    v = [float(x) for x in values if _finite(x)]
     if not v:
         return {"median": None, "min": None, "max": None, "of": 0}
     return {"median": statistics.median(v), "min": min(v), "max": max(v), "of": len(v)}
@@ -146,7 +153,8 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
       cases without an estimate are counted apart;
     * controls and out-of-library cases: the share where a named model has posterior >=
       ``p`` (false claims), and the share where any effect is adopted;
-    * reduced chi^2 on controls (held out and training: median and range);
+    * reduced chi^2 on controls (held out and training: median and range), and the share
+      of controls whose held-out value lies within CONTROL_CHI2_RANGE, below it and above it;
     * two-effect cases: the share with both effects named (adopted, or the top model is
       their pair), and with at least one;
     * counts of every kind and of failed cases.
@@ -173,6 +181,11 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
     like = [r.get("likelihood") or {} for r in by["control"]]
     out["control"]["reduced_chi2_held_out"] = _spread(x.get("reduced_chi2_held_out") for x in like)
     out["control"]["reduced_chi2_train"] = _spread(x.get("reduced_chi2_train") for x in like)
+    held = [float(x["reduced_chi2_held_out"]) for x in like if _finite(x.get("reduced_chi2_held_out"))]
+    lo, hi = CONTROL_CHI2_RANGE
+    out["control"]["reduced_chi2_held_out_within"] = _share(sum(lo <= v <= hi for v in held), len(held))
+    out["control"]["reduced_chi2_held_out_below"] = _share(sum(v < lo for v in held), len(held))
+    out["control"]["reduced_chi2_held_out_above"] = _share(sum(v > hi for v in held), len(held))
     both = one = 0
     for r in by["pair"]:
         truth = set(true_effects(r))
@@ -195,6 +208,7 @@ def _fmt(fig: dict) -> str:
 def summary_table(s: dict) -> str:
     """:func:`summary` as a text table, one figure a line."""
     lines = [f"{'figure':58s} value", "-" * 90]
+    lo, hi = CONTROL_CHI2_RANGE
     c = s["counts"]
     lines.append(f"{'cases (effect / pair / control / out of library; failed)':58s} "
                  f"{c['effect']} / {c['pair']} / {c['control']} / {c['out_of_library']}; {s['failed']}")
@@ -208,6 +222,9 @@ def summary_table(s: dict) -> str:
         ("controls: a named model at posterior >= 0.9", s["control"]["claimed_p90"]),
         ("controls: an effect adopted (missing_effect)", s["control"]["named_any"]),
         ("controls: reduced chi2 held out", s["control"]["reduced_chi2_held_out"]),
+        (f"controls: reduced chi2 held out within {lo:g}-{hi:g}", s["control"]["reduced_chi2_held_out_within"]),
+        (f"controls: reduced chi2 held out below {lo:g}", s["control"]["reduced_chi2_held_out_below"]),
+        (f"controls: reduced chi2 held out above {hi:g}", s["control"]["reduced_chi2_held_out_above"]),
         ("controls: reduced chi2 training", s["control"]["reduced_chi2_train"]),
         ("out of library: a named model at posterior >= 0.9", s["out_of_library"]["claimed_p90"]),
         ("out of library: an effect adopted (missing_effect)", s["out_of_library"]["named_any"]),
@@ -218,5 +235,5 @@ def summary_table(s: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["KINDS", "CLAIM_PROBABILITY", "latest", "true_effects", "named", "probability", "top_model", "claimed", "interval",
+__all__ = ["KINDS", "CLAIM_PROBABILITY", "CONTROL_CHI2_RANGE", "latest", "true_effects", "named", "probability", "top_model", "claimed", "interval",
            "side", "effect_case", "summary", "summary_table"]

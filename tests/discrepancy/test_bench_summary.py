@@ -109,11 +109,17 @@ def test_summary_figures_from_hand_written_lines():
     chi = s["control"]["reduced_chi2_held_out"]
     assert (chi["median"], chi["min"], chi["max"], chi["of"]) == (1.55, 0.5, 3.0, 4)
     assert s["control"]["reduced_chi2_train"]["of"] == 2
+    # the range, ends included: c1 (1.1) and c4 (0.5) in it, c2 (3.0) and c3 (2.0) above
+    assert B.CONTROL_CHI2_RANGE == (0.5, 1.5)
+    assert s["control"]["reduced_chi2_held_out_within"] == {"count": 2, "of": 4, "share": 0.5}
+    assert s["control"]["reduced_chi2_held_out_below"]["count"] == 0
+    assert s["control"]["reduced_chi2_held_out_above"]["count"] == 2
     assert s["out_of_library"]["claimed_p90"] == {"count": 1, "of": 2, "share": 0.5}
     assert s["pair"]["both_named"] == {"count": 2, "of": 3, "share": pytest.approx(2 / 3)}
     assert s["pair"]["one_named"]["count"] == 3
     table = B.summary_table(s)
     assert "top-1 correct" in table and "3/4" in table and "median 1.55" in table
+    assert "reduced chi2 held out within 0.5-1.5" in table
 
 
 def test_summary_of_rows_without_the_new_diagnosis_keys():
@@ -226,3 +232,23 @@ def test_each_case_is_written_at_once_and_resume_skips_it(bench, tmp_path, monke
     assert ran[0] == rows[1]["id"]  # the failed case is tried again, the finished ones are not
     rows = bench.read_lines(out)
     assert len(rows) == 5 and "controls" in capsys.readouterr().out
+
+
+def test_the_summary_of_several_files_counts_each_case_once(bench, tmp_path, capsys):
+    a, b = tmp_path / "a.jsonl", tmp_path / "b.jsonl"
+    first = {"id": "c1", "kind": "control", "truth": truth(), "posterior": {"none": 0.05, "turbine_drag": 0.95},
+             "likelihood": {"reduced_chi2_held_out": 0.2}}
+    again = dict(first, posterior={"none": 0.9, "turbine_drag": 0.1}, likelihood={"reduced_chi2_held_out": 0.8})
+    other = {"id": "c2", "kind": "control", "truth": truth(), "posterior": {"none": 1.0},
+             "likelihood": {"reduced_chi2_held_out": 2.0}}
+    a.write_text(json.dumps(first) + "\n" + json.dumps(other) + "\n")
+    b.write_text(json.dumps(again) + "\n")
+    assert bench.main(["--summary", str(a), str(b)]) == 0
+    values = {line[:58].strip(): line[58:].strip() for line in capsys.readouterr().out.splitlines()}
+    # c1 counts once, by its later line (b): no claim, in range; c2 above the range
+    assert values["controls: a named model at posterior >= 0.9"].startswith("0/2")
+    assert values["controls: reduced chi2 held out within 0.5-1.5"].startswith("1/2")
+    assert values["controls: reduced chi2 held out above 1.5"].startswith("1/2")
+    with pytest.raises(SystemExit):  # a missing file is an error, not an empty benchmark
+        bench.main(["--summary", str(a), str(tmp_path / "nope.jsonl")])
+    assert "no such file" in capsys.readouterr().err
