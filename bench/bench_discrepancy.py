@@ -236,7 +236,7 @@ def main(argv=None):
                     help="skip the next-test design (its runs do not change any figure of the summary)")
     a = ap.parse_args(argv)
     if a.summary:
-        missing = [f for f in a.summary if not os.path.exists(f)]
+        missing = [f for f in a.summary if not os.path.isfile(f)]
         if missing:
             ap.error(f"--summary: no such file: {', '.join(missing)}")
         print(summary_table(summary([r for f in a.summary for r in read_lines(f)])))

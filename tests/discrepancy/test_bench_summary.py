@@ -252,3 +252,14 @@ def test_the_summary_of_several_files_counts_each_case_once(bench, tmp_path, cap
     with pytest.raises(SystemExit):  # a missing file is an error, not an empty benchmark
         bench.main(["--summary", str(a), str(tmp_path / "nope.jsonl")])
     assert "no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # nor is a folder
+        bench.main(["--summary", str(tmp_path)])
+
+
+def test_the_controls_chi2_range_includes_both_ends():
+    rows = [{"id": f"c{i}", "kind": "control", "truth": truth(), "likelihood": {"reduced_chi2_held_out": v}}
+            for i, v in enumerate([0.49, 0.5, 1.0, 1.5, 1.51, float("nan"), None])]
+    c = B.summary(lines(rows))["control"]
+    # NaN and None are no figure: five values, 0.5 and 1.5 inside
+    assert c["reduced_chi2_held_out_within"] == {"count": 3, "of": 5, "share": 0.6}
+    assert c["reduced_chi2_held_out_below"]["count"] == 1 and c["reduced_chi2_held_out_above"]["count"] == 1
