@@ -5,7 +5,8 @@ the hard matrix it rebuilds the case's acquisition chain from the case seed
 (:func:`dampersim.discrepancy.synth.daq_setting`, as the synthesis draws it) and prints:
 
 * the mean, over the held-out points (every third torsional point, from the second, as the
-  diagnosis holds them out), of the squared error the input channel puts on the drive's mean
+  diagnosis holds them out when it keeps every point: a case whose diagnosis left a point
+  out held out others, and this script does not follow that), of the squared error the input channel puts on the drive's mean
   torque, ``(offset + (gain - 1) T)^2``, in units of the variance the diagnosis assumes for
   it (:func:`dampersim.discrepancy.likelihood.input_mean_sd` at the point's mean torque T
   [N m]); 1 on average when the draws match the diagnosis's uncertainty;

@@ -16,9 +16,9 @@ def bench():
     return load_bench("bench_control_draws")
 
 
-def test_the_held_out_points_are_the_diagnosis_s():
+def test_the_held_out_points_are_the_diagnosis_s(bench):
     # diagnose.py holds out every third kept torsional point from the second (i % 3 == 1)
-    assert load_bench("bench_control_draws").held_out_points() == ["tc_1600", "tc_2800", "map_1200_50", "map_1500_150"]
+    assert bench.held_out_points() == ["tc_1600", "tc_2800", "map_1200_50", "map_1500_150"]
 
 
 def test_the_input_draw_of_control_none_4(bench):
@@ -32,7 +32,7 @@ def test_the_input_draw_of_control_none_4(bench):
     assert bench.input_draw_z2(seed, points) == pytest.approx(by_hand, rel=0.02)
 
 
-def test_rows_and_rank_correlations(bench, tmp_path):
+def test_rows_and_rank_correlations(bench):
     def line(cid, kind, chi):
         return {"id": cid, "kind": kind, "likelihood": {"reduced_chi2_held_out": chi}}
 
