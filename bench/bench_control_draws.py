@@ -32,6 +32,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_discrepancy as B  # noqa: E402
 
 from dampersim.discrepancy.benchmark import latest  # noqa: E402
+from dampersim.discrepancy.diagnose import held_out_indices  # noqa: E402
 from dampersim.discrepancy.likelihood import input_mean_sd  # noqa: E402
 from dampersim.discrepancy.synth import daq_setting, plan  # noqa: E402
 
@@ -39,7 +40,7 @@ from dampersim.discrepancy.synth import daq_setting, plan  # noqa: E402
 def held_out_points(n_points: int = 12, n_ramps: int = 1) -> list:
     """The torsional points the diagnosis holds out of a hard-matrix campaign (every third, from the second)."""
     torsional = [p for p in B.point_ids(n_points, n_ramps) if not p.startswith("ramp")]
-    return [p for i, p in enumerate(torsional) if i % 3 == 1]
+    return [torsional[i] for i in held_out_indices(len(torsional))]
 
 
 def input_draw_z2(seed: int, points: list) -> float:
@@ -88,9 +89,7 @@ def main(argv=None) -> int:
     ap.add_argument("--add", nargs="*", default=[], metavar="ID=CHI2",
                     help="controls diagnosed elsewhere, with their held-out reduced chi^2")
     a = ap.parse_args(argv)
-    missing = [f for f in a.files if not os.path.isfile(f)]
-    if missing:
-        ap.error(f"no such file: {', '.join(missing)}")
+    rows = B.read_files(ap, a.files)
     added = {}
     for item in a.add:
         cid, _, value = item.partition("=")
@@ -98,7 +97,7 @@ def main(argv=None) -> int:
             added[cid] = float(value)
         except ValueError:
             ap.error(f"--add {item!r}: accepted is CASE_ID=CHI2, e.g. control/calibration/3=1.49")
-    table = control_rows([r for f in a.files for r in B.read_lines(f)], added)
+    table = control_rows(rows, added)
     print(f"{'control':28s} {'group':16s} {'chi2 held out':>13s} {'input draw z2':>13s} {'noise dB':>9s}")
     for cid, group, chi, z2, noise in table:
         print(f"{cid:28s} {group:16s} {chi:13.2f} {z2:13.2f} {noise:+9.2f}")

@@ -198,6 +198,15 @@ def read_lines(path) -> list:
     return rows
 
 
+def read_files(ap, paths) -> list:
+    """The JSON lines of the result files ``paths``, in the order given; a path that is not
+    a file is the parser ``ap``'s error (never an empty benchmark)."""
+    missing = [f for f in paths if not os.path.isfile(f)]
+    if missing:
+        ap.error(f"no such file: {', '.join(missing)}")
+    return [r for f in paths for r in read_lines(f)]
+
+
 def append_line(path, row) -> None:
     """Append ``row`` as one JSON line and flush it to disk (after a newline if a killed
     run left a torn last line, which :func:`read_lines` then skips)."""
@@ -236,10 +245,7 @@ def main(argv=None):
                     help="skip the next-test design (its runs do not change any figure of the summary)")
     a = ap.parse_args(argv)
     if a.summary:
-        missing = [f for f in a.summary if not os.path.isfile(f)]
-        if missing:
-            ap.error(f"--summary: no such file: {', '.join(missing)}")
-        print(summary_table(summary([r for f in a.summary for r in read_lines(f)])))
+        print(summary_table(summary(read_files(ap, a.summary))))
         return 0
     if a.matrix == "hard":
         cases = hard_cases(a.seeds or 2, a.matrix_seed)

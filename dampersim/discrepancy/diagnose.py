@@ -45,6 +45,12 @@ REPEATABILITY = ("split_half", "residual")
 CHI2_NOISE = 1.5
 
 
+def held_out_indices(n_points: int) -> list:
+    """Indices of the held-out torsional points among ``n_points`` kept ones: every third,
+    from the second (the others are the training points)."""
+    return [i for i in range(n_points) if i % 3 == 1]
+
+
 def noise_level(dof: int) -> float:
     """Reduced chi^2 at the noise level for ``dof`` real residuals: CHI2_NOISE, or the 99 %
     quantile of chi^2/dof where that is larger (few residuals scatter more)."""
@@ -126,8 +132,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             return _not_diagnosed(system, missing, message, problems, runner.count, t0)
         y0, meas_c, repeat = y0[keep], meas_c[keep], repeat[keep]
         meas = np.abs(meas_c)
-        held = [i for i in range(len(pts)) if i % 3 == 1]
-        train = [i for i in range(len(pts)) if i % 3 != 1]
+        held = held_out_indices(len(pts))
+        train = [i for i in range(len(pts)) if i not in held]
         ptr = [pts[i] for i in train]
         mains = pickup.pickup_sigma(pts, drive.ORDERS)
         sigma, floor = uncertainty(repeat, meas_c, mains, terms0, keep)

@@ -17,7 +17,8 @@ def bench():
 
 
 def test_the_held_out_points_are_the_diagnosis_s(bench):
-    # diagnose.py holds out every third kept torsional point from the second (i % 3 == 1)
+    # the bench reads the diagnosis's own rule (diagnose.held_out_indices): every third kept
+    # torsional point, from the second
     assert bench.held_out_points() == ["tc_1600", "tc_2800", "map_1200_50", "map_1500_150"]
 
 
