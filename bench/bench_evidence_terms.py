@@ -19,7 +19,22 @@ one ramp) the whole diagnosis runs (no next-test design) and prints, per fitted 
 * ``cost_without_effect`` (single effects): the same objective at the model's calibration
   factors without its effect or the effect's prior terms, from runs of the training points made for this bench
   (not counted in ``simulations``). Near a single effect's cost it says the fit gained by
-  the calibration factors its fit reached, not by the effect.
+  the calibration factors its fit reached, not by the effect;
+* ``magnitude`` is the torsional fit's; ``sized_magnitude`` the one the diagnosis reports
+  after the ramps sized the most probable effect (``ramp_models.size_by_ramps``), or null
+  where they did not move it.
+
+With ``--ramp-profile`` each single effect's ramps are also replayed along its magnitude
+(``ramp_profile``, runs not counted in ``simulations``): at ``PROFILE_POINTS`` log
+magnitudes spaced evenly over the torsional fit's log magnitude u0 ± max(RAMP_SEARCH,
+4 sd) (sd the fit's Laplace standard deviation of log magnitude; kept inside the
+effect's accepted range), the ramps' log likelihood with the magnitude held there and
+the calibration factors' covariance carried as the diagnosis carries it
+(``RampLikelihood.predictive``, scaled by the same effective share), less that of
+"none". ``replayed`` integrates the same over the torsional fit's Gaussian on u0
+(trapezoid on the grid, the Gaussian renormalised to it): the ramps' evidence with
+the magnitude's effect replayed, against ``linearised``, the term the posterior read
+(the magnitude carried through one sensitivity at u0).
 
 Candidates that were only screened get their screen evidence relative to "none". A whole
 diagnosis per case (777 s for control/none/1 on 2 cores).
@@ -41,14 +56,63 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
 
 from dampersim.discrepancy import diagnose as dg  # noqa: E402
-from dampersim.discrepancy import drive, selection  # noqa: E402
-from dampersim.discrepancy.fitting import calibrated_system  # noqa: E402
+import numpy as np  # noqa: E402
+
+from dampersim.discrepancy import drive, naming, ramp_models, selection  # noqa: E402
+from dampersim.discrepancy.effects import info, with_effect  # noqa: E402
+from dampersim.discrepancy.fitting import CALIBRATION, calibrated_system  # noqa: E402
+
+#: grid points of a ramp profile
+PROFILE_POINTS = 21
 
 
-def terms_of(camp, workers: int) -> dict:
-    """Run the diagnosis of ``camp`` and return its verdict, posterior and every model's terms."""
-    seen, held_namer = {}, {}
+def ramp_profile(fit, ramp_lik, points, ll_none: float, ll_lin: float, workers: int) -> dict:
+    """The ramps' log likelihood of a single-effect fit along its log magnitude, against
+    "none" (see the module's ``--ramp-profile``): grid rows and the replayed and linearised
+    evidence, in nats relative to "none". ``fit`` holds the torsional fit as the ramp
+    evidence read it (before any sizing)."""
+    name = fit["effects"][0]
+    n_cal = len(CALIBRATION)
+    u0, var0 = math.log(fit["m"]), max(float(fit["cov"][n_cal, n_cal]), 1e-12)
+    span = max(ramp_models.RAMP_SEARCH, 4.0 * math.sqrt(var0))
+    lo = math.log(naming.clip_magnitude(name, math.exp(u0 - span)))
+    hi = math.log(naming.clip_magnitude(name, math.exp(u0 + span)))
+    us = np.linspace(lo, hi, PROFILE_POINTS) if hi > lo else np.array([u0])
+    systems = [with_effect(fit["system"], name, {info(name).magnitude: math.exp(u)}) for u in us]
+    with drive.Runner(workers) as runner:
+        out = runner.map([(drive.diagnosis_system(s), p) for s in systems for p in points])
+    cols = np.column_stack(ramp_lik.cols_x)
+    rel = []
+    for k in range(len(us)):
+        w = {p.id: (o["windup"] if "windup" in o else o.get("error", "no result"))
+             for p, o in zip(points, out[k * len(points):(k + 1) * len(points)])}
+        rel.append(ramp_lik.predictive(w, cols, fit["cov"][:n_cal, :n_cal])[0] - ll_none)
+    rel = np.array(rel)
+    logw = -0.5 * (us - u0) ** 2 / var0
+    if len(us) > 1:
+        logw = logw + np.log(np.gradient(us))  # trapezoid-like weights on an even grid
+    ok = np.isfinite(rel)
+    replayed = None
+    if ok.any():
+        a, b = rel[ok] + logw[ok], logw[ok]
+        replayed = float(np.logaddexp.reduce(a) - np.logaddexp.reduce(b))
+    return {"u0": round(u0, 4), "sd": round(math.sqrt(var0), 4),
+            "rows": [[float(f"{math.exp(u):.4g}"), round(float(r), 3)] for u, r in zip(us, rel)],
+            "best": float(f"{math.exp(us[int(np.nanargmax(np.where(ok, rel, -np.inf)))]):.4g}") if ok.any() else None,
+            "replayed": None if replayed is None else round(replayed, 3), "linearised": round(ll_lin - ll_none, 3)}
+
+
+def terms_of(camp, workers: int, profile: bool = False) -> dict:
+    """Run the diagnosis of ``camp`` and return its verdict, posterior and every model's terms
+    (with ``profile``, each single effect's ramp profile, see :func:`ramp_profile`)."""
+    seen, held_namer, fits, ramp_seen = {}, {}, {}, {}
     real_penalty, real_log_z, real_namer = selection.held_out_penalty, selection.model_log_evidence, dg.Namer
+    real_evidence = ramp_models.evidence
+
+    def spy_evidence(runner, system, x, models, points):
+        out = real_evidence(runner, system, x, models, points)
+        ramp_seen.update(lik=out[0], points=points)
+        return out
 
     class SpyNamer(real_namer):
         def __init__(self, *args, **kwargs):
@@ -67,6 +131,9 @@ def terms_of(camp, workers: int) -> dict:
     def spy_penalty(lik, models, held, eta):
         rows = held_namer["namer"].train
         per = 2 * len(lik.orders)
+        # the fits as the evidence reads them (the ramps' sizing later replaces m, system, cov)
+        fits.update({label: {"fit": fit, "as_read": {k: fit[k] for k in ("m", "system", "cov", "effects") if k in fit}}
+                     for label, fit in models.items()})
         seen["models"] = {
             label: {"cost": float(fit["cost"]), "start": fit.get("start"),
                     "x": [round(float(v), 4) for v in fit["x"]],
@@ -88,16 +155,24 @@ def terms_of(camp, workers: int) -> dict:
         return out
 
     selection.held_out_penalty, selection.model_log_evidence, dg.Namer = spy_penalty, spy_log_z, SpyNamer
+    ramp_models.evidence = spy_evidence
     try:
         diag = dg.diagnose(camp, workers=workers, recommend=False)
         d = diag.to_json()
     finally:
         selection.held_out_penalty, selection.model_log_evidence, dg.Namer = real_penalty, real_log_z, real_namer
+        ramp_models.evidence = real_evidence
     if "models" not in seen:  # not diagnosed: no model was fitted
         return {"verdict": d["verdict"], "message": d["message"], "simulations": d["simulations"]}
     priors = d["likelihood"]["model_prior"]
     for label, m in seen["models"].items():
         m["log_prior"] = math.log(priors[label]) if priors.get(label) else None
+        f = fits[label]
+        moved = f["fit"].get("m") is not None and f["fit"].get("m") != f["as_read"].get("m")
+        m["sized_magnitude"] = f["fit"]["m"] if moved else None
+        if profile and len(f["as_read"].get("effects", [])) == 1 and ramp_seen.get("lik") is not None:
+            m["ramp_profile"] = ramp_profile(f["as_read"], ramp_seen["lik"], ramp_seen["points"],
+                                             seen["models"]["none"]["ramps"], m["ramps"], workers)
     train = [p["id"] for p in diag.points if not p["held_out"]]
     return {"verdict": d["verdict"], "posterior": {k: round(v, 3) for k, v in d["posterior"].items() if v >= 0.001},
             "reduced_chi2_held_out": d["likelihood"]["reduced_chi2_held_out"],
@@ -109,12 +184,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("cases", nargs="*", default=["control/none/1"], help="hard-matrix case ids (default control/none/1)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--ramp-profile", action="store_true",
+                    help="replay each single effect's ramps along its magnitude (PROFILE_POINTS replays per ramp)")
     a = ap.parse_args(argv)
     matrix = S.named_cases(ap, a.cases)
     for cid in a.cases:
         with tempfile.TemporaryDirectory() as d:
             camp = S.campaign_of(matrix[cid], os.path.join(d, "campaign"), a.workers)
-            print(json.dumps({"case": cid, **terms_of(camp, a.workers)}, default=float), flush=True)
+            print(json.dumps({"case": cid, **terms_of(camp, a.workers, a.ramp_profile)}, default=float), flush=True)
     return 0
 
 
