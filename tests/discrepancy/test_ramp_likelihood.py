@@ -145,3 +145,86 @@ def test_detectability_reads_the_ramps_at_the_best_predictions_noise_scale():
     # every prediction failed: ramp_reference falls back to "none", and so does the scale
     lik.settle({"none": -math.inf, "output_backlash": -math.inf}, {"none": 3.0, "output_backlash": 1.0}, {})
     assert lik.noise_scale == 3.0
+
+
+# --- a single effect's ramps replayed along its magnitude (ramp_models) -------------------
+
+def test_the_profile_integral_is_the_gaussian_closed_form():
+    """A Gaussian log likelihood in u times the fit's Gaussian on u integrates to the
+    closed form when the grid holds both (tolerance: 21 grid points over +-4 sd; the
+    trapezoid on a smooth Gaussian product is good to well below 0.01 nats)."""
+    from dampersim.discrepancy.ramp_models import integrate_profile
+
+    u0, s0, mu, s1 = math.log(0.03), 0.5, math.log(0.01), 0.3
+    us = np.linspace(u0 - 4 * s0, u0 + 4 * s0, 21)
+    ll = -0.5 * ((us - mu) / s1) ** 2
+    v = s0 ** 2 + s1 ** 2
+    exact = 0.5 * math.log(s1 ** 2 / v) - 0.5 * (u0 - mu) ** 2 / v
+    assert integrate_profile(us, ll, u0, s0 ** 2) == pytest.approx(exact, abs=0.01)
+    # a failed replay is no match: it adds nothing to the integral but keeps its prior mass
+    ll_failed = ll.copy()
+    ll_failed[10] = -math.inf
+    assert integrate_profile(us, ll_failed, u0, s0 ** 2) < integrate_profile(us, ll, u0, s0 ** 2)
+    assert integrate_profile(us, np.full(us.size, -math.inf), u0, s0 ** 2) == -math.inf
+
+
+def test_the_magnitude_grid_stays_in_the_accepted_range():
+    from dampersim.discrepancy import naming
+    from dampersim.discrepancy.ramp_models import PROFILE_POINTS, RAMP_SEARCH, magnitude_grid
+
+    us = magnitude_grid("output_backlash", math.log(0.03), 0.01)  # narrow fit: the search half width
+    assert len(us) == PROFILE_POINTS
+    assert us[0] == pytest.approx(math.log(0.03) - RAMP_SEARCH) and us[-1] == pytest.approx(math.log(0.03) + RAMP_SEARCH)
+    wide = magnitude_grid("output_backlash", math.log(0.03), 4.0)  # 4 sd = 8 in log: clipped to the range
+    assert all(math.exp(u) == pytest.approx(naming.clip_magnitude("output_backlash", math.exp(u))) for u in wide)
+
+
+class _StepRunner:
+    """Replays a ramp as the clean windup plus a free play's signature: an offset of the
+    free play on the unloading branch (where the input torque falls)."""
+
+    def __init__(self, p):
+        self.base = p.windup.copy()
+        self.falling = np.gradient(p.input_torque) < 0
+
+    def windup(self, gap):
+        return self.base + np.where(self.falling, gap, 0.0)
+
+    def map(self, tasks):
+        return [{"windup": self.windup(s.effects.output_backlash.free_play)} for s, _ in tasks]
+
+
+def _replayed_lead(measured_gap, fitted_gap=0.01, sd_log=1.0):
+    """The ramps' replayed evidence of a fitted free play against the clean model, with the
+    ramp measured at ``measured_gap`` [rad] (channel noise 0.05 deg)."""
+    from dampersim.discrepancy.effects import with_effect
+    from dampersim.discrepancy.fitting import CALIBRATION
+    from dampersim.discrepancy.ramp_models import integrate_profile, magnitude_grid, replay_profile
+    from dampersim.parameters import default_parameters
+
+    clean = F.ramp("r0")
+    runner = _StepRunner(clean)
+    meas = _noisy(dataclasses.replace(clean, windup=runner.windup(measured_gap)), math.radians(0.05))
+    lik = RampLikelihood([meas], {meas.id: clean.windup}, {meas.id: clean.windup})
+    n = len(CALIBRATION)
+    lik.cols_x = [np.zeros(lik.residuals)] * n
+    cov = np.eye(n + 1) * 0.01
+    cov[n, n] = sd_log ** 2
+    ll_none = lik.predictive({meas.id: clean.windup}, np.column_stack(lik.cols_x), cov[:n, :n])[0]
+    u0 = math.log(fitted_gap)
+    fit = {"effects": ["output_backlash"], "m": fitted_gap, "cov": cov,
+           "system": with_effect(default_parameters(), "output_backlash", {"free_play": fitted_gap})}
+    us = magnitude_grid("output_backlash", u0, sd_log ** 2)
+    lls = np.array([r[0] for r in replay_profile(runner, lik, fit, [meas], us)])
+    return integrate_profile(us, lls, u0, sd_log ** 2) - ll_none
+
+
+def test_replayed_ramps_favour_a_free_play_only_when_the_ramp_shows_one():
+    """With no free play in the measured ramp every replayed magnitude fits worse than the
+    clean model, so the integral over the magnitude cannot lead (-5.8 nats here); with a
+    0.01 rad free play (0.57 deg, about 11 times the channel noise) the replays near that
+    magnitude lead by 12.7 nats (not more: each model fits its own uncertainty scale, so
+    the clean model widens its samples to its misfit). 10 nats is decisive and leaves room
+    for the grid's placement."""
+    assert _replayed_lead(0.0) < 0.0
+    assert _replayed_lead(0.01) > 10.0
