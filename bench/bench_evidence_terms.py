@@ -25,17 +25,21 @@ one ramp) the whole diagnosis runs (no next-test design) and prints, per fitted 
   where they did not move it.
 
 With ``--ramp-profile`` each single effect's ramps are also replayed along its magnitude
-(``ramp_profile``, runs not counted in ``simulations``): at
-``ramp_models.PROFILE_POINTS`` log magnitudes (``ramp_models.magnitude_grid``: the
-torsional fit's log magnitude u0 ± max(RAMP_SEARCH, 4 sd), sd the fit's Laplace standard
-deviation of log magnitude, inside the effect's accepted range), the ramps' log likelihood
-with the magnitude held there and the calibration factors' covariance carried as the
-diagnosis carries it (``ramp_models.replay_profile``, scaled by the diagnosis's effective
-share), less that of "none". ``replayed`` integrates the same over the torsional fit's
-Gaussian on u0 (``ramp_models.integrate_profile``), against ``posterior_term``, the term
-the posterior read. Before the diagnosis replayed single effects itself (commit 03f305c
-and earlier) that term carried the magnitude through one sensitivity at u0 (linearised);
-since, the two should agree.
+(``ramp_profile``, runs not counted in ``simulations``): at ``PROFILE_POINTS`` log
+magnitudes spaced evenly over the torsional fit's log magnitude u0 ± max(RAMP_SEARCH,
+4 sd) (sd the fit's Laplace standard deviation of log magnitude; kept inside the
+effect's accepted range), the ramps' log likelihood with the magnitude held there and
+the calibration factors' covariance carried as the diagnosis carries it
+(``RampLikelihood.predictive``, scaled by the same effective share), less that of
+"none". ``replayed`` integrates the same over the torsional fit's Gaussian on u0
+(:func:`replayed_evidence`, a sum on the even grid, the Gaussian renormalised to it):
+the ramps' evidence with the magnitude's effect replayed, against ``linearised``, the
+term the posterior read (the magnitude carried through one sensitivity at u0).
+``share`` is the ramps' effective share of independent samples: the replays' log
+likelihoods carry it inside the sum, while the linearised term is a whole log
+likelihood times it. Caveats: 21 points over at least ±1.5 in log magnitude can miss a
+ramp likelihood narrower than the spacing; the calibration factors are held at the fit
+with their marginal covariance (the magnitude's correlation with them is not carried).
 
 Candidates that were only screened get their screen evidence relative to "none". A whole
 diagnosis per case (777 s for control/none/1 on 2 cores).
@@ -52,32 +56,61 @@ import os
 import sys
 import tempfile
 
+import numpy as np
+
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
 
 from dampersim.discrepancy import diagnose as dg  # noqa: E402
-import numpy as np  # noqa: E402
-
-from dampersim.discrepancy import drive, ramp_models, selection  # noqa: E402
+from dampersim.discrepancy import drive, naming, ramp_models, selection  # noqa: E402
+from dampersim.discrepancy.effects import info, with_effect  # noqa: E402
 from dampersim.discrepancy.fitting import CALIBRATION, calibrated_system  # noqa: E402
 
-def ramp_profile(fit, ramp_lik, points, ll_none: float, ll_term: float, workers: int) -> dict:
+#: grid points of a ramp profile
+PROFILE_POINTS = 21
+
+
+def replayed_evidence(us, rel, u0: float, var0: float):
+    """log of the sum over the even grid ``us`` of exp(rel) weighted by the Gaussian N(u0,
+    var0) in u, the weights renormalised over the grid points whose replay worked (``rel``
+    finite); None when none did. With a grid that holds the Gaussian it is the integral."""
+    us, rel = np.asarray(us, dtype=float), np.asarray(rel, dtype=float)
+    logw = -0.5 * (us - u0) ** 2 / var0
+    ok = np.isfinite(rel)
+    if not ok.any():
+        return None
+    return float(np.logaddexp.reduce(rel[ok] + logw[ok]) - np.logaddexp.reduce(logw[ok]))
+
+
+def ramp_profile(fit, ramp_lik, points, ll_none: float, ll_lin: float, workers: int) -> dict:
     """The ramps' log likelihood of a single-effect fit along its log magnitude, against
-    "none" (see the module's ``--ramp-profile``): grid rows [magnitude, nats], the replayed
-    evidence and the term the posterior read, in nats relative to "none". ``fit`` holds the
-    torsional fit as the ramp evidence read it (before any sizing)."""
+    "none" (see the module's ``--ramp-profile``): grid rows and the replayed and linearised
+    evidence, in nats relative to "none". ``fit`` holds the torsional fit as the ramp
+    evidence read it (before any sizing)."""
+    name = fit["effects"][0]
     n_cal = len(CALIBRATION)
     u0, var0 = math.log(fit["m"]), max(float(fit["cov"][n_cal, n_cal]), 1e-12)
-    us = ramp_models.magnitude_grid(fit["effects"][0], u0, var0)
+    span = max(ramp_models.RAMP_SEARCH, 4.0 * math.sqrt(var0))
+    lo = math.log(naming.clip_magnitude(name, math.exp(u0 - span)))
+    hi = math.log(naming.clip_magnitude(name, math.exp(u0 + span)))
+    us = np.linspace(lo, hi, PROFILE_POINTS) if hi > lo else np.array([u0])
+    systems = [with_effect(fit["system"], name, {info(name).magnitude: math.exp(u)}) for u in us]
     with drive.Runner(workers) as runner:
-        rel = np.array([r[0] for r in ramp_models.replay_profile(runner, ramp_lik, fit, points, us)]) - ll_none
+        out = runner.map([(drive.diagnosis_system(s), p) for s in systems for p in points])
+    cols = np.column_stack(ramp_lik.cols_x)
+    rel = []
+    for k in range(len(us)):
+        w = {p.id: (o["windup"] if "windup" in o else o.get("error", "no result"))
+             for p, o in zip(points, out[k * len(points):(k + 1) * len(points)])}
+        rel.append(ramp_lik.predictive(w, cols, fit["cov"][:n_cal, :n_cal])[0] - ll_none)
+    rel = np.array(rel)
     ok = np.isfinite(rel)
-    return {"u0": round(u0, 4), "sd": round(math.sqrt(var0), 4),
+    replayed = replayed_evidence(us, rel, u0, var0)
+    return {"u0": round(u0, 4), "sd": round(math.sqrt(var0), 4), "share": round(float(ramp_lik.fraction), 4),
             "rows": [[float(f"{math.exp(u):.4g}"), round(float(r), 3)] for u, r in zip(us, rel)],
-            "best": float(f"{math.exp(us[int(np.argmax(np.where(ok, rel, -np.inf)))]):.4g}") if ok.any() else None,
-            "replayed": round(ramp_models.integrate_profile(us, rel, u0, var0), 3),
-            "posterior_term": round(ll_term - ll_none, 3)}
+            "best": float(f"{math.exp(us[int(np.nanargmax(np.where(ok, rel, -np.inf)))]):.4g}") if ok.any() else None,
+            "replayed": None if replayed is None else round(replayed, 3), "linearised": round(ll_lin - ll_none, 3)}
 
 
 def terms_of(camp, workers: int, profile: bool = False) -> dict:
@@ -163,7 +196,7 @@ def main(argv=None):
     ap.add_argument("cases", nargs="*", default=["control/none/1"], help="hard-matrix case ids (default control/none/1)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--ramp-profile", action="store_true",
-                    help="replay each single effect's ramps along its magnitude (ramp_models.PROFILE_POINTS replays per ramp)")
+                    help="replay each single effect's ramps along its magnitude (PROFILE_POINTS replays per ramp)")
     a = ap.parse_args(argv)
     matrix = S.named_cases(ap, a.cases)
     for cid in a.cases:
