@@ -12,3 +12,17 @@ def load_bench(name: str):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+class NullRunner:
+    """A stand-in for ``drive.Runner`` in bench tests: a context manager that runs nothing
+    (a test subclasses it with the ``map`` it needs, or replaces the functions that use it)."""
+
+    def __init__(self, workers=None):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False

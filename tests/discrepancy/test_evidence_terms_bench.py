@@ -11,7 +11,7 @@ import pytest
 from dampersim.discrepancy import drive
 from dampersim.discrepancy.effects import with_effect
 from dampersim.parameters import default_parameters
-from tests.discrepancy.benches import load_bench
+from tests.discrepancy.benches import NullRunner, load_bench
 
 
 @pytest.fixture(scope="module")
@@ -40,17 +40,8 @@ def test_the_replayed_evidence_is_the_gaussian_integral_on_a_grid_that_holds_it(
         bench.replayed_evidence(us[1::2], rel[1::2], u0, s0 ** 2))
 
 
-class _Runner:
+class _Runner(NullRunner):
     """Replays a ramp as a one-sample windup equal to the system's free play [rad]."""
-
-    def __init__(self, workers):
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
     def map(self, tasks):
         return [{"windup": np.array([s.effects.output_backlash.free_play])} for s, _ in tasks]

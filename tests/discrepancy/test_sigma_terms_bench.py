@@ -8,7 +8,7 @@ from dampersim.discrepancy import diagnose as dg
 from dampersim.discrepancy import drive, likelihood
 from dampersim.discrepancy.fitting import UNCALIBRATED
 from dampersim.discrepancy.likelihood import Likelihood
-from tests.discrepancy.benches import load_bench
+from tests.discrepancy.benches import NullRunner, load_bench
 
 TERMS = ("repeat", "model", "mains", "input", "uncalibrated", "floor")
 N, K = 9, 8
@@ -289,17 +289,7 @@ def test_direction_changes_and_the_extra_columns(bench, monkeypatch):
     moved[3, 2, :] = np.nan  # two failed runs: the sets' rows are NaN where a run failed
     moved[2, 4, :] = np.nan
 
-    class Runner:
-        def __init__(self, workers):
-            pass
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            return False
-
-    monkeypatch.setattr(drive, "Runner", Runner)
+    monkeypatch.setattr(drive, "Runner", NullRunner)
     monkeypatch.setattr(drive, "coefficients_of_sets", lambda runner, sets, points: moved[:len(sets)])
 
     dirs = {"a": {"inertias.tertiary": 1.0}, "b": {"rig.elements.gearbox.inertia": 1.0}}
