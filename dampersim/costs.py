@@ -296,8 +296,9 @@ DIAGNOSIS_DESIGN_S = 0.6 + 1.0  # simulated length of one design run [s] (start-
 DIAGNOSIS_LEAD_IN_S = 0.6 + 0.5
 #: replays of each ramp: as given, calibrated, its coarse check, six calibration sensitivities, each
 #: fitted model (shortlist and a pair) with its magnitude sensitivities (two for the pair), the
-#: sizing search of the most probable effect (10 + 2 for its curvature) and that model afterwards
-DIAGNOSIS_RAMP_SIZING = 10 + 2
+#: sizing search of the most probable effect (10, and 3 for its curvature when the search ends
+#: at a bound of its range, 2 otherwise) and that model afterwards
+DIAGNOSIS_RAMP_SIZING = 10 + 3
 #: ... and the detectability of the effects that show in ramps (three, design.RAMP_PROTOCOLS) at
 #: three magnitudes each
 DIAGNOSIS_RAMP_DETECT = 3 * 3

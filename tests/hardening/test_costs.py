@@ -4,6 +4,7 @@ budgets from the environment, and admit()'s three answers."""
 from __future__ import annotations
 
 import inspect
+import math
 import tracemalloc
 
 import numpy as np
@@ -168,10 +169,10 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_DESIGN_S == pytest.approx(0.6 + design.DESIGN_RECORD)
     # given, calibrated, coarse, six sensitivities, fits and pair with their magnitude sensitivities, the sized top
     # and the sizing search of the top effect (bounded search + curvature) with its replay
-    assert costs.DIAGNOSIS_RAMP_SIZING == 10 + 2
+    assert costs.DIAGNOSIS_RAMP_SIZING == 10 + 3  # counted by test_ramp_sizing_replays_at_most_the_counted_runs
     # and the ramp-visible effects' detectability (three magnitudes each)
     assert costs.DIAGNOSIS_RAMP_DETECT == len(design.RAMP_PROTOCOLS) * len(EFFECTS["clutch_slip"].magnitudes)
-    assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 12 + 1 + 9
+    assert costs.DIAGNOSIS_RAMP_RUNS == 3 + len(dg.CALIBRATION) + 2 * (defaults["shortlist"] + 1) + 1 + 13 + 1 + 9
     # 12 points: 8 training, 4 held out (every third)
     # (the recheck at the calibrated factors: 9 runs per point, one Gauss-Newton step's three
     # trials on the training points and its held-out check)
@@ -215,3 +216,41 @@ def test_every_default_page_state_starts_by_itself(page):
     state, notices = parse_query(page, {})
     assert not notices
     assert costs.admit(state_cost(page, resolve_system(state["params"]), state)) == "run"
+
+
+@pytest.mark.parametrize("best", ["below", "inside"])
+def test_ramp_sizing_replays_at_most_the_counted_runs(monkeypatch, best):
+    """ramp_models.size_by_ramps's replays of the ramps, counted on a fake ramp likelihood
+    whose best magnitude lies below the search range (the search ends at its bound and the
+    curvature takes three new replays: 13) or inside it (the search converges in fewer): never more than DIAGNOSIS_RAMP_SIZING."""
+    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy import drive, ramp_models
+    from dampersim.discrepancy.effects import with_effect
+    from dampersim.parameters import default_parameters
+
+    replays = []
+    monkeypatch.setattr(ramp_models.ramps_lik, "run_ramps",
+                        lambda runner, system, points: replays.append(1) or {"r": system.effects.output_backlash.free_play})
+    monkeypatch.setattr(drive, "coefficients_of", lambda runner, system, pts: np.ones((3, 2)))
+    peak = math.log(0.001) if best == "below" else math.log(0.025)
+
+    class Ramps:
+        cols_x = [np.zeros(1)] * len(dg.CALIBRATION)
+
+        def predictive(self, w, cols, cov):
+            return -50.0 * (math.log(w["r"]) - peak) ** 2, 0.0, None, None
+
+    class Lik:
+        def profile(self, y, rows):
+            return 0.0, np.zeros(2)
+
+    n = len(dg.CALIBRATION)
+    fit = {"effects": ["output_backlash"], "m": 0.03, "cov": np.eye(n + 1),
+           "system": with_effect(default_parameters(), "output_backlash", {"free_play": 0.03})}
+    moved = ramp_models.size_by_ramps(None, fit, [0, 1, 2], [0, 1], [2], Lik(), Ramps(), ["r"])
+    assert moved
+    if best == "below":
+        assert fit["m"] == pytest.approx(0.03 * math.exp(-ramp_models.RAMP_SEARCH), rel=0.03)
+    assert len(replays) <= costs.DIAGNOSIS_RAMP_SIZING
+    if best == "below":  # the most the search can take: ten evaluations, three for the curvature
+        assert len(replays) == 13
