@@ -1,0 +1,134 @@
+"""How much do the strict CI campaigns move with the machine's floating-point path?
+
+The campaigns of tests/discrepancy/test_identification.py (bench_control_misfit.py's
+``ci-control`` with no acquisition chain, the clean test's, and ``ci-absorber`` with the
+random chain of seed 3, the absorber test's: 18/8 model, 24/10 truth, nine points of 0.8 s,
+3 % perturbation, seed 3) are synthesised and diagnosed once per variant, each in a process
+of its own whose environment changes only how the same arithmetic is compiled or dispatched:
+
+    host            as installed (numba compiles for this CPU, numpy and OpenBLAS pick theirs)
+    numba-generic   NUMBA_CPU_NAME=generic: the kernel compiled for a generic x86-64
+    numpy-v2        NPY_DISABLE_CPU_FEATURES=X86_V3: numpy's AVX2/FMA3 loops off
+    openblas-sb     OPENBLAS_CORETYPE=Sandybridge: another BLAS kernel
+
+None of them changes a parameter, a seed or an equation. Printed per variant: verdict,
+posterior of "none" and of the absorber, the absorber's fitted inertia [kg m^2] and its 90 %
+interval, held-out reduced chi^2 (calibrated and most probable) and training reduced chi^2,
+model runs, wall time, and how far
+its synthesised measured output orders lie from the host's, per point as the largest
+|difference| over the orders in units of that cell's split-half repeatability
+(likelihood.split_half_sigma; 0 where the syntheses agree). Only the kernel's code moves
+the synthesised data: at the points where the truth run is chaotic by up to 1.9 (control)
+and 4.6 (absorber) repeatabilities, elsewhere by less than 0.04. The other variants leave the
+data alone and move the diagnosis's path. docs/discrepancy.md (Known limits) quotes the
+figures.
+
+    python bench/bench_float_paths.py                       # all four, one after another
+    python bench/bench_float_paths.py --variants host numba-generic
+    python bench/bench_float_paths.py --case ci-absorber
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_control_misfit as M  # noqa: E402 - the CI campaigns and their diagnosis options
+
+VARIANTS = {
+    "host": {},
+    "numba-generic": {"NUMBA_CPU_NAME": "generic"},
+    "numpy-v2": {"NPY_DISABLE_CPU_FEATURES": "X86_V3"},
+    "openblas-sb": {"OPENBLAS_CORETYPE": "Sandybridge"},
+}
+
+
+def worker(out: str, case: str, workers: int) -> None:
+    """Synthesise and diagnose a CI campaign in this process; write the measured
+    coefficients, their split-half sigma and the diagnosis's figures to ``out`` (JSON)."""
+    from dampersim.discrepancy import drive, likelihood, synth
+    from dampersim.discrepancy.campaign import read_campaign
+    from dampersim.discrepancy.diagnose import diagnose
+    from dampersim.parameters import at_thesis_segments
+
+    base = at_thesis_segments()
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as d:
+        camp = os.path.join(d, "campaign")
+        absorber = case == "ci-absorber"
+        synth.synthesize(camp, effects=[("pendulum_absorber", {"inertia": 0.002})] if absorber else [], perturb=0.03,
+                         seed=M.CI_SEED, points=M.CI_POINTS, record=0.8, workers=workers,
+                         daq=M.ci_daq("random" if absorber else "none"), base=base)
+        c = read_campaign(camp)
+        coef = {p.id: likelihood.measured_coefficients(p, drive.ORDERS) for p in c.points}
+        sig = {p.id: likelihood.split_half_sigma(p, drive.ORDERS) for p in c.points}
+        g = diagnose(c, base, workers=workers, recommend=False, candidates=M.CI_CANDIDATES, calibration_iterations=3,
+                     shortlist=2)
+    lk = g.likelihood
+    fitted = next((e for e in g.effects if e["name"] == "pendulum_absorber"), None)
+    doc = {"verdict": g.verdict, "none": g.posterior.get("none"), "absorber": g.posterior.get("pendulum_absorber"),
+           "inertia": fitted and fitted["parameters"]["inertia"], "interval": fitted and fitted["intervals"]["inertia"],
+           "held_out_calibrated": lk["reduced_chi2_held_out_calibrated"], "held_out": lk["reduced_chi2_held_out"],
+           "train": lk["reduced_chi2_train"], "noise_level": lk["noise_level"], "runs": g.simulations,
+           "wall_s": time.perf_counter() - t0,
+           "coef": {k: [np.real(v).ravel().tolist(), np.imag(v).ravel().tolist()] for k, v in coef.items()},
+           "sigma": {k: np.abs(v).ravel().tolist() for k, v in sig.items()}}
+    with open(out, "w") as f:
+        json.dump(doc, f)
+
+
+def spread(ref: dict, other: dict) -> dict:
+    """Per point, the largest |measured difference| over the orders in units of the reference's
+    split-half sigma (0 where the two syntheses agree)."""
+    out = {}
+    for pid, (re, im) in ref["coef"].items():
+        a = np.asarray(re) + 1j * np.asarray(im)
+        b = np.asarray(other["coef"][pid][0]) + 1j * np.asarray(other["coef"][pid][1])
+        out[pid] = float(np.max(np.abs(a - b) / np.maximum(np.asarray(ref["sigma"][pid]), 1e-300)))
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--case", choices=("ci-control", "ci-absorber"), default="ci-control")
+    ap.add_argument("--variants", nargs="+", choices=tuple(VARIANTS), default=list(VARIANTS))
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--worker", metavar="OUT", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker:
+        worker(args.worker, args.case, args.workers)
+        return
+    if "host" not in args.variants:
+        args.variants.insert(0, "host")
+    docs = {}
+    with tempfile.TemporaryDirectory() as d:
+        for name in args.variants:
+            env = {**os.environ, **VARIANTS[name]}
+            if name == "numba-generic":  # its machine code must not mix with the host's cache
+                env["NUMBA_CACHE_DIR"] = os.path.join(d, "numba-generic")
+            out = os.path.join(d, f"{name}.json")
+            subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", out, "--case", args.case,
+                            "--workers", str(args.workers)], env=env, check=True)
+            with open(out) as f:
+                docs[name] = json.load(f)
+            r = docs[name]
+            moved = spread(docs["host"], r)
+            print(json.dumps({"case": args.case, "variant": name, "env": VARIANTS[name], "verdict": r["verdict"],
+                              "none": r["none"], "pendulum_absorber": r["absorber"], "inertia": r["inertia"],
+                              "interval": r["interval"], "reduced_chi2_held_out_calibrated": r["held_out_calibrated"],
+                              "reduced_chi2_held_out": r["held_out"], "reduced_chi2_train": r["train"],
+                              "noise_level": r["noise_level"], "runs": r["runs"], "wall_s": round(r["wall_s"], 1),
+                              "measured_moved_sigma": {k: round(v, 3) for k, v in moved.items()}}), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,34 @@
+"""bench/bench_float_paths.py's reading (docs/discrepancy.md, Known limits, quotes it): how far a
+variant's measured orders lie from the host's, in the host's split-half repeatability."""
+
+import pytest
+
+from tests.discrepancy.benches import load_bench
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return load_bench("bench_float_paths")
+
+
+def _doc(coef, sigma):
+    return {"coef": {pid: [[c.real for c in v], [c.imag for c in v]] for pid, v in coef.items()},
+            "sigma": sigma}
+
+
+def test_the_spread_is_the_largest_change_in_repeatabilities(bench):
+    ref = _doc({"a": [1 + 1j, 2 + 0j], "b": [3j, 4 + 0j]}, {"a": [0.5, 2.0], "b": [1.0, 1.0]})
+    # a: order 1 moves by |0.3 + 0.4j| = 0.5 against sigma 0.5 (1.0), order 2 by 1 against 2 (0.5)
+    other = _doc({"a": [1.3 + 1.4j, 3 + 0j], "b": [3j, 4 + 0j]}, {"a": [9.0, 9.0], "b": [9.0, 9.0]})
+    moved = bench.spread(ref, other)
+    assert moved["a"] == pytest.approx(1.0, rel=1e-12)  # the host's sigma, not the variant's
+    assert moved["b"] == 0.0
+    assert bench.spread(ref, ref) == {"a": 0.0, "b": 0.0}
+
+
+def test_the_variants_change_only_how_the_arithmetic_runs(bench):
+    # every variant is the host's environment with one compile or dispatch setting, never a
+    # parameter of the model or of the diagnosis
+    assert bench.VARIANTS["host"] == {}
+    allowed = {"NUMBA_CPU_NAME", "NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE"}
+    assert all(set(env) <= allowed and len(env) == 1 for name, env in bench.VARIANTS.items() if name != "host")
