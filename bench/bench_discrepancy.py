@@ -57,6 +57,7 @@ from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import EFFECTS, NAMES
 from dampersim.discrepancy.synth import plan, synthesize
 from dampersim.jsonsafe import jsonable
+from dampersim.keys import platform
 
 #: diagnosis keys kept per case (plus every gap_*_nm key)
 KEEP = ("verdict", "effect", "effects", "effect_parameters", "posterior", "detectability", "outliers",
@@ -73,6 +74,11 @@ MISCAL = (
 HARD_CONTROLS = (("none", 8), ("calibration", 10), ("rig_stiff_parts", 4))
 HARD_OUT_OF_LIBRARY = (("rig_shaft", 3), ("rig_inertia", 2), ("friction_shape", 3), ("friction_split", 2),
                        ("motor_control", 2))
+#: environment settings that change how the same arithmetic is compiled or dispatched, and so
+#: a campaign's figures (docs/discrepancy.md, Known limits, "A campaign's figures move with the
+#: machine's rounding"; bench_float_paths.py varies three of them)
+FLOAT_PATH_ENV = ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", "NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES",
+                  "OPENBLAS_CORETYPE")
 NOISE_DB = (-6.0, 3.0)  # sensor noise range of the hard matrix [dB re 1 N m]
 PERTURB = 0.1  # estimated-parameter perturbation of the hard matrix (synth's default)
 
@@ -157,6 +163,20 @@ def point_ids(n_points: int, n_ramps: int) -> list:
     return ids + ramps[:n_ramps]
 
 
+def machine() -> dict:
+    """What a result line's figures depend on besides the code and the case: the versions and
+    the CPU numba compiles for (:func:`dampersim.keys.platform`), the SIMD extensions numpy
+    dispatches to, and those of :data:`FLOAT_PATH_ENV` that are set. The same case moves with
+    them, by more than its printed digits, where its truth or its model is chaotic."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as feats
+        simd = sorted(k for k, on in feats.items() if on)
+    except ImportError:  # numpy's internal layout moved: say so rather than guess
+        simd = ["unknown"]
+    return {**platform(), "numpy_simd": simd,
+            "env": {k: os.environ[k] for k in FLOAT_PATH_ENV if k in os.environ}}
+
+
 def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, recommend: bool = True) -> dict:
     """Synthesise the case's campaign, diagnose it, return its JSON line."""
     ids = point_ids(n_points, n_ramps)
@@ -178,6 +198,7 @@ def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, rec
     row.update({k: v for k, v in diag.items() if k.startswith("gap_")})
     row["wall_s"] = wall
     row["case_wall_s"] = time.perf_counter() - t_start
+    row["machine"] = machine()
     return jsonable(row)
 
 

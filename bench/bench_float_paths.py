@@ -43,6 +43,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_control_misfit as M  # noqa: E402 - the CI campaigns and their diagnosis options
+import bench_discrepancy as B  # noqa: E402 - machine(): what a result line's figures depend on
 
 VARIANTS = {
     "host": {},
@@ -79,7 +80,7 @@ def worker(out: str, case: str, workers: int) -> None:
            "inertia": fitted and fitted["parameters"]["inertia"], "interval": fitted and fitted["intervals"]["inertia"],
            "held_out_calibrated": lk["reduced_chi2_held_out_calibrated"], "held_out": lk["reduced_chi2_held_out"],
            "train": lk["reduced_chi2_train"], "noise_level": lk["noise_level"], "runs": g.simulations,
-           "wall_s": time.perf_counter() - t0,
+           "wall_s": time.perf_counter() - t0, "machine": B.machine(),
            "coef": {k: [np.real(v).ravel().tolist(), np.imag(v).ravel().tolist()] for k, v in coef.items()},
            "sigma": {k: np.abs(v).ravel().tolist() for k, v in sig.items()}}
     with open(out, "w") as f:
@@ -127,6 +128,7 @@ def main(argv=None):
                               "interval": r["interval"], "reduced_chi2_held_out_calibrated": r["held_out_calibrated"],
                               "reduced_chi2_held_out": r["held_out"], "reduced_chi2_train": r["train"],
                               "noise_level": r["noise_level"], "runs": r["runs"], "wall_s": round(r["wall_s"], 1),
+                              "numba_cpu": r["machine"]["cpu"].get("name"), "numpy_simd": r["machine"]["numpy_simd"],
                               "measured_moved_sigma": {k: round(v, 3) for k, v in moved.items()}}), flush=True)
 
 

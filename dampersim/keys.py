@@ -193,11 +193,17 @@ def _version(dist: str) -> str:
 def platform() -> dict:
     """What besides our source can change a computed number: the Python, numpy, scipy
     (filters), numba and llvmlite versions and the CPU numba compiles for (name and
-    feature string)."""
+    feature string: the host's unless NUMBA_CPU_NAME or NUMBA_CPU_FEATURES choose another
+    target, as numba's own code generator reads them; a kernel built for a generic x86-64
+    moves a chaotic campaign's orders by up to 4.6 repeatabilities, docs/discrepancy.md,
+    Known limits)."""
     try:
         from llvmlite import binding as llvm
+        from numba.core import config as numba_config
 
-        cpu = {"name": llvm.get_host_cpu_name(), "features": llvm.get_host_cpu_features().flatten()}
+        name = numba_config.CPU_NAME or llvm.get_host_cpu_name()
+        features = numba_config.CPU_FEATURES
+        cpu = {"name": name, "features": llvm.get_host_cpu_features().flatten() if features is None else features}
     except Exception as exc:  # llvmlite missing or unable to tell: say so in the key
         cpu = {"name": "unknown", "error": type(exc).__name__}
     return {

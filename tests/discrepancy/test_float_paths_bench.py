@@ -28,7 +28,17 @@ def test_the_spread_is_the_largest_change_in_repeatabilities(bench):
 
 def test_the_variants_change_only_how_the_arithmetic_runs(bench):
     # every variant is the host's environment with one compile or dispatch setting, never a
-    # parameter of the model or of the diagnosis
+    # parameter of the model or of the diagnosis, and the benchmark's result lines record each
+    allowed = set(load_bench("bench_discrepancy").FLOAT_PATH_ENV)
     assert bench.VARIANTS["host"] == {}
-    allowed = {"NUMBA_CPU_NAME", "NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE"}
     assert all(set(env) <= allowed and len(env) == 1 for name, env in bench.VARIANTS.items() if name != "host")
+
+
+def test_a_result_line_records_the_float_path(monkeypatch):
+    b = load_bench("bench_discrepancy")
+    for k in b.FLOAT_PATH_ENV:
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
+    m = b.machine()
+    assert m["env"] == {"NUMBA_CPU_NAME": "generic"}  # only the settings that are set
+    assert {"numpy", "scipy", "numba", "llvmlite", "cpu"} <= set(m) and m["numpy_simd"]

@@ -37,6 +37,20 @@ TRUE_INERTIA = 0.002  # [kg m^2] the library's strong absorber
 #: rest; run alone they take both. Every model run is deterministic: the count changes no number.
 WORKERS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else 2
 
+#: lower bound of the clean campaign's held-out reduced chi^2: half the smallest value it
+#: took over four floating-point paths of one machine (0.148, 0.157, 0.306, 0.321:
+#: `python bench/bench_float_paths.py`, commit 5d07e95). Not near 1: the uncertainties are
+#: inflated (the hard benchmark's 22 controls read 0.08 to 2.58, median 0.24, 15 below 0.5;
+#: docs/discrepancy.md, Known limits), and this one campaign's value is a draw that moves
+#: with how the machine rounds: its truth runs are chaotic at three of the nine points (their
+#: measured orders move by up to 1.9 split-half repeatabilities with the kernel's code), and
+#: the diagnosis's own path moves with the BLAS kernel (the same measured data gave 0.148 and
+#: 0.306, in 987 and 963 model runs). Until commit 63b85cc the
+#: bound was 0.3, which one machine met and the next did not with the same code. A change
+#: that inflates the cell variance by more than 2.1 times fails here on the path of the
+#: smallest value (4.6 times on that of the largest).
+HELD_OUT_CHI2_LOW = 0.07
+
 #: the diagnosed model at the thesis's 18/8 segments (the truth then has 24/10): the method
 #: is what is tested, and these counts halve the run time against the default 48/16
 BASE = at_thesis_segments()
@@ -108,8 +122,9 @@ def test_a_clean_campaign_names_nothing(control):
     assert d.verdict == "no_missing_effect", d.message
     assert d.effect is None and d.effects == []
     assert max(v for k, v in d.posterior.items() if k != "none") < 0.5
-    # uncertainties neither inflated nor optimistic: held-out chi^2 per residual near 1
-    assert 0.3 <= d.likelihood["reduced_chi2_held_out"] <= d.likelihood["noise_level"]
+    # not optimistic: the held-out misfit within the noise level; not inflated further
+    # than today (HELD_OUT_CHI2_LOW says why the bound is not 1 or 0.5)
+    assert HELD_OUT_CHI2_LOW <= d.likelihood["reduced_chi2_held_out"] <= d.likelihood["noise_level"]
 
 
 @pytest.mark.slow

@@ -76,6 +76,18 @@ def test_platform_names_the_libraries_and_cpu_that_shape_numbers():
     assert doc["platform"] == plat and doc["source"] == keys.source_hash(RECORD)
 
 
+def test_platform_names_the_target_numba_was_told_to_compile_for(monkeypatch):
+    # NUMBA_CPU_NAME / NUMBA_CPU_FEATURES (read into numba's config at import) change the
+    # machine code and so a chaotic run's numbers: a result computed for another target is
+    # not this one's
+    from numba.core import config
+
+    host = keys.platform.__wrapped__()["cpu"]
+    monkeypatch.setattr(config, "CPU_NAME", "generic")
+    monkeypatch.setattr(config, "CPU_FEATURES", "")
+    assert keys.platform.__wrapped__()["cpu"] == {"name": "generic", "features": ""} != host
+
+
 def test_view_keys_cover_figures_analysis_and_the_diagnosis():
     explorer = keys.module_closure("dampersim.views.explorer")
     for name in ("dampersim.plotting.traces", "dampersim.plotting.spectra", "dampersim.analysis.order_table",
