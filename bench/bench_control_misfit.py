@@ -55,6 +55,10 @@ CI_POINTS = ["map_900_150", "map_1200_250", "map_1500_150", "map_1800_350", "map
              "map_1500_350", "map_1800_150", "map_900_350"]
 CI_CANDIDATES = ["pendulum_absorber", "turbine_drag", "transducer_bandwidth"]
 CI_SEED = 3
+#: per CI campaign: its hidden effects and its acquisition chain (ci_daq's spec)
+CI_CASES = {"ci-control": ([], "none"), "ci-absorber": ([("pendulum_absorber", {"inertia": 0.002})], "random")}
+#: the strict CI tests' diagnosis options
+CI_DIAGNOSIS = {"candidates": CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2}
 
 
 def ci_daq(spec: str):
@@ -155,10 +159,9 @@ def main(argv=None):
                       {"noise_db": -2.0, "candidates": ["turbine_drag"], "shortlist": 1}, args.workers)
             print(json.dumps(row), flush=True)
         return
-    effects = [("pendulum_absorber", {"inertia": 0.002})] if args.case == "ci-absorber" else []
+    effects = CI_CASES[args.case][0]
     row = run(f"{args.case} daq={args.daq} {floor}", effects, 0.03, CI_SEED, CI_POINTS, 0.8, ci_daq(args.daq),
-              True, at_thesis_segments(), {"candidates": CI_CANDIDATES, "calibration_iterations": 3, "shortlist": 2},
-              args.workers)
+              True, at_thesis_segments(), dict(CI_DIAGNOSIS), args.workers)
     print(json.dumps(row), flush=True)
 
 

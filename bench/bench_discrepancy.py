@@ -77,8 +77,8 @@ HARD_OUT_OF_LIBRARY = (("rig_shaft", 3), ("rig_inertia", 2), ("friction_shape", 
 #: environment settings that change how the same arithmetic is compiled or dispatched, and so
 #: a campaign's figures (docs/discrepancy.md, Known limits, "A campaign's figures move with the
 #: machine's rounding"; bench_float_paths.py varies three of them)
-FLOAT_PATH_ENV = ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", "NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES",
-                  "OPENBLAS_CORETYPE")
+FLOAT_PATH_ENV = ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", "NUMBA_ENABLE_AVX", "NUMBA_OPT", "NPY_DISABLE_CPU_FEATURES",
+                  "NPY_ENABLE_CPU_FEATURES", "OPENBLAS_CORETYPE")
 NOISE_DB = (-6.0, 3.0)  # sensor noise range of the hard matrix [dB re 1 N m]
 PERTURB = 0.1  # estimated-parameter perturbation of the hard matrix (synth's default)
 
@@ -163,17 +163,44 @@ def point_ids(n_points: int, n_ramps: int) -> list:
     return ids + ramps[:n_ramps]
 
 
+def openblas_kernels() -> dict:
+    """The kernel each OpenBLAS loaded in this process runs (numpy's and scipy's bundle one
+    each), by library file name: {} where none can be asked (not Linux, or another BLAS)."""
+    import ctypes
+
+    import scipy.linalg  # noqa: F401 - loads scipy's own OpenBLAS, which the diagnosis uses too
+
+    out = {}
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as fh:
+            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
+    except OSError:
+        return out
+    for path in paths:
+        lib = ctypes.CDLL(path)
+        for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename64_",
+                     "openblas_get_corename"):
+            fn = getattr(lib, name, None)
+            if fn is not None:
+                fn.restype = ctypes.c_char_p
+                out[os.path.basename(path)] = fn().decode()
+                break
+    return out
+
+
 def machine() -> dict:
     """What a result line's figures depend on besides the code and the case: the versions and
-    the CPU numba compiles for (:func:`dampersim.keys.platform`), the SIMD extensions numpy
-    dispatches to, and those of :data:`FLOAT_PATH_ENV` that are set. The same case moves with
-    them, by more than its printed digits, where its truth or its model is chaotic."""
+    the CPU numba compiles for (:func:`dampersim.keys.platform`), the CPU features numpy reads
+    (a group switched off by NPY_DISABLE_CPU_FEATURES, such as X86_V3, reads off while its
+    members may still read on), the OpenBLAS kernels (:func:`openblas_kernels`), and those of
+    :data:`FLOAT_PATH_ENV` that are set. The same case moves with them, by more than its
+    printed digits, where its truth or its model is chaotic."""
     try:
         from numpy._core._multiarray_umath import __cpu_features__ as feats
         simd = sorted(k for k, on in feats.items() if on)
     except ImportError:  # numpy's internal layout moved: say so rather than guess
         simd = ["unknown"]
-    return {**platform(), "numpy_simd": simd,
+    return {**platform(), "numpy_simd": simd, "openblas": openblas_kernels(),
             "env": {k: os.environ[k] for k in FLOAT_PATH_ENV if k in os.environ}}
 
 

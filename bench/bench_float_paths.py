@@ -12,12 +12,13 @@ of its own whose environment changes only how the same arithmetic is compiled or
     openblas-sb     OPENBLAS_CORETYPE=Sandybridge: another BLAS kernel
 
 None of them changes a parameter, a seed or an equation. Printed per variant: verdict,
-posterior of "none" and of the absorber, the absorber's fitted inertia [kg m^2] and its 90 %
+the float-path settings and what the process saw (numba's target CPU, numpy's features,
+OpenBLAS's kernel), posterior of "none" and of the absorber, the absorber's fitted inertia [kg m^2] and its 90 %
 interval, held-out reduced chi^2 (calibrated and most probable) and training reduced chi^2,
 model runs, wall time, and how far
 its synthesised measured output orders lie from the host's, per point as the largest
-|difference| over the orders in units of that cell's split-half repeatability
-(likelihood.split_half_sigma; 0 where the syntheses agree). Only the kernel's code moves
+|difference| over the orders in units of the host's repeatability term of that cell as the
+diagnosis forms it (likelihood.sigma_variances; 0 where the syntheses agree). Only the kernel's code moves
 the synthesised data: at the points where the truth run is chaotic by up to 1.9 (control)
 and 4.6 (absorber) repeatabilities, elsewhere by less than 0.04. The other variants leave the
 data alone and move the diagnosis's path. docs/discrepancy.md (Known limits) quotes the
@@ -53,9 +54,15 @@ VARIANTS = {
 }
 
 
+def variant_env(name: str, environ) -> dict:
+    """The environment of variant ``name``: ``environ`` without any float-path setting of the
+    caller's (bench_discrepancy.FLOAT_PATH_ENV), plus the variant's own."""
+    return {**{k: v for k, v in environ.items() if k not in B.FLOAT_PATH_ENV}, **VARIANTS[name]}
+
+
 def worker(out: str, case: str, workers: int) -> None:
-    """Synthesise and diagnose a CI campaign in this process; write the measured
-    coefficients, their split-half sigma and the diagnosis's figures to ``out`` (JSON)."""
+    """Synthesise and diagnose a CI campaign in this process; write the measured coefficients,
+    the diagnosis's repeatability term per cell and the diagnosis's figures to ``out`` (JSON)."""
     from dampersim.discrepancy import drive, likelihood, synth
     from dampersim.discrepancy.campaign import read_campaign
     from dampersim.discrepancy.diagnose import diagnose
@@ -63,33 +70,35 @@ def worker(out: str, case: str, workers: int) -> None:
 
     base = at_thesis_segments()
     t0 = time.perf_counter()
+    effects, daq = M.CI_CASES[case]
     with tempfile.TemporaryDirectory() as d:
         camp = os.path.join(d, "campaign")
-        absorber = case == "ci-absorber"
-        synth.synthesize(camp, effects=[("pendulum_absorber", {"inertia": 0.002})] if absorber else [], perturb=0.03,
-                         seed=M.CI_SEED, points=M.CI_POINTS, record=0.8, workers=workers,
-                         daq=M.ci_daq("random" if absorber else "none"), base=base)
+        synth.synthesize(camp, effects=effects, perturb=0.03, seed=M.CI_SEED, points=M.CI_POINTS, record=0.8,
+                         workers=workers, daq=M.ci_daq(daq), base=base)
         c = read_campaign(camp)
-        coef = {p.id: likelihood.measured_coefficients(p, drive.ORDERS) for p in c.points}
-        sig = {p.id: likelihood.split_half_sigma(p, drive.ORDERS) for p in c.points}
-        g = diagnose(c, base, workers=workers, recommend=False, candidates=M.CI_CANDIDATES, calibration_iterations=3,
-                     shortlist=2)
+        coef = np.array([likelihood.measured_coefficients(p, drive.ORDERS) for p in c.points])
+        half = np.array([likelihood.split_half_sigma(p, drive.ORDERS) for p in c.points])
+        # the repeatability term as the diagnosis forms it (each cell's sample pooled with its
+        # order's median over the points), not the single sample, which can be near zero
+        sig = np.sqrt(likelihood.sigma_variances(half, np.zeros(half.shape), np.abs(coef))["repeat"])
+        g = diagnose(c, base, workers=workers, recommend=False, **M.CI_DIAGNOSIS)
     lk = g.likelihood
     fitted = next((e for e in g.effects if e["name"] == "pendulum_absorber"), None)
+    ids = [p.id for p in c.points]
     doc = {"verdict": g.verdict, "none": g.posterior.get("none"), "absorber": g.posterior.get("pendulum_absorber"),
            "inertia": fitted and fitted["parameters"]["inertia"], "interval": fitted and fitted["intervals"]["inertia"],
            "held_out_calibrated": lk["reduced_chi2_held_out_calibrated"], "held_out": lk["reduced_chi2_held_out"],
            "train": lk["reduced_chi2_train"], "noise_level": lk["noise_level"], "runs": g.simulations,
            "wall_s": time.perf_counter() - t0, "machine": B.machine(),
-           "coef": {k: [np.real(v).ravel().tolist(), np.imag(v).ravel().tolist()] for k, v in coef.items()},
-           "sigma": {k: np.abs(v).ravel().tolist() for k, v in sig.items()}}
+           "coef": {k: [np.real(v).tolist(), np.imag(v).tolist()] for k, v in zip(ids, coef)},
+           "sigma": {k: v.tolist() for k, v in zip(ids, sig)}}
     with open(out, "w") as f:
         json.dump(doc, f)
 
 
 def spread(ref: dict, other: dict) -> dict:
     """Per point, the largest |measured difference| over the orders in units of the reference's
-    split-half sigma (0 where the two syntheses agree)."""
+    repeatability term (0 where the two syntheses agree)."""
     out = {}
     for pid, (re, im) in ref["coef"].items():
         a = np.asarray(re) + 1j * np.asarray(im)
@@ -108,14 +117,11 @@ def main(argv=None):
     if args.worker:
         worker(args.worker, args.case, args.workers)
         return
-    if "host" not in args.variants:
-        args.variants.insert(0, "host")
+    variants = ["host"] + [v for v in dict.fromkeys(args.variants) if v != "host"]  # the reference runs first
     docs = {}
     with tempfile.TemporaryDirectory() as d:
-        for name in args.variants:
-            env = {**os.environ, **VARIANTS[name]}
-            if name == "numba-generic":  # its machine code must not mix with the host's cache
-                env["NUMBA_CACHE_DIR"] = os.path.join(d, "numba-generic")
+        for name in variants:
+            env = variant_env(name, os.environ)
             out = os.path.join(d, f"{name}.json")
             subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", out, "--case", args.case,
                             "--workers", str(args.workers)], env=env, check=True)
@@ -123,12 +129,13 @@ def main(argv=None):
                 docs[name] = json.load(f)
             r = docs[name]
             moved = spread(docs["host"], r)
-            print(json.dumps({"case": args.case, "variant": name, "env": VARIANTS[name], "verdict": r["verdict"],
+            print(json.dumps({"case": args.case, "variant": name, "env": r["machine"]["env"], "verdict": r["verdict"],
                               "none": r["none"], "pendulum_absorber": r["absorber"], "inertia": r["inertia"],
                               "interval": r["interval"], "reduced_chi2_held_out_calibrated": r["held_out_calibrated"],
                               "reduced_chi2_held_out": r["held_out"], "reduced_chi2_train": r["train"],
                               "noise_level": r["noise_level"], "runs": r["runs"], "wall_s": round(r["wall_s"], 1),
                               "numba_cpu": r["machine"]["cpu"].get("name"), "numpy_simd": r["machine"]["numpy_simd"],
+                              "openblas": r["machine"]["openblas"],
                               "measured_moved_sigma": {k: round(v, 3) for k, v in moved.items()}}), flush=True)
 
 

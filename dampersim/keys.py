@@ -199,11 +199,14 @@ def platform() -> dict:
     Known limits)."""
     try:
         from llvmlite import binding as llvm
-        from numba.core import config as numba_config
+        from numba.core import codegen, config as numba_config
 
-        name = numba_config.CPU_NAME or llvm.get_host_cpu_name()
+        # as numba.core.codegen.JITCPUCodegen chooses its target (its _get_host_cpu_name and
+        # _get_host_cpu_features): the configured name and features if set, else the host's,
+        # whose features lose AVX where numba's config disables it (NUMBA_ENABLE_AVX)
+        name = llvm.get_host_cpu_name() if numba_config.CPU_NAME is None else numba_config.CPU_NAME
         features = numba_config.CPU_FEATURES
-        cpu = {"name": name, "features": llvm.get_host_cpu_features().flatten() if features is None else features}
+        cpu = {"name": name, "features": codegen.get_host_cpu_features() if features is None else features}
     except Exception as exc:  # llvmlite missing or unable to tell: say so in the key
         cpu = {"name": "unknown", "error": type(exc).__name__}
     return {

@@ -1,5 +1,6 @@
 """bench/bench_float_paths.py's reading (docs/discrepancy.md, Known limits, quotes it): how far a
-variant's measured orders lie from the host's, in the host's split-half repeatability."""
+variant's measured orders lie from the host's, in the host's repeatability term; its variants'
+environments; and the machine a benchmark result line records."""
 
 import pytest
 
@@ -34,6 +35,14 @@ def test_the_variants_change_only_how_the_arithmetic_runs(bench):
     assert all(set(env) <= allowed and len(env) == 1 for name, env in bench.VARIANTS.items() if name != "host")
 
 
+def test_a_variant_drops_the_caller_s_float_path_settings(bench):
+    # "host" must be the host even where the caller's shell sets a float-path variable, and a
+    # variant must carry its own setting alone
+    caller = {"PATH": "/bin", "NUMBA_CPU_NAME": "skylake", "OPENBLAS_CORETYPE": "Haswell"}
+    assert bench.variant_env("host", caller) == {"PATH": "/bin"}
+    assert bench.variant_env("numpy-v2", caller) == {"PATH": "/bin", "NPY_DISABLE_CPU_FEATURES": "X86_V3"}
+
+
 def test_a_result_line_records_the_float_path(monkeypatch):
     b = load_bench("bench_discrepancy")
     for k in b.FLOAT_PATH_ENV:
@@ -41,4 +50,6 @@ def test_a_result_line_records_the_float_path(monkeypatch):
     monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
     m = b.machine()
     assert m["env"] == {"NUMBA_CPU_NAME": "generic"}  # only the settings that are set
-    assert {"numpy", "scipy", "numba", "llvmlite", "cpu"} <= set(m) and m["numpy_simd"]
+    assert {"numpy", "scipy", "numba", "llvmlite", "cpu", "openblas"} <= set(m)
+    assert m["numpy_simd"] != ["unknown"]
+    assert m["machine"] != "x86_64" or "SSE2" in m["numpy_simd"]  # x86-64's baseline is always on

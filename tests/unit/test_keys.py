@@ -86,6 +86,12 @@ def test_platform_names_the_target_numba_was_told_to_compile_for(monkeypatch):
     monkeypatch.setattr(config, "CPU_NAME", "generic")
     monkeypatch.setattr(config, "CPU_FEATURES", "")
     assert keys.platform.__wrapped__()["cpu"] == {"name": "generic", "features": ""} != host
+    monkeypatch.setattr(config, "CPU_NAME", None)
+    monkeypatch.setattr(config, "CPU_FEATURES", "+sse2")  # features alone: the host's name
+    assert keys.platform.__wrapped__()["cpu"] == {"name": host["name"], "features": "+sse2"}
+    monkeypatch.setattr(config, "CPU_FEATURES", None)
+    monkeypatch.setattr(config, "ENABLE_AVX", False)  # numba then drops AVX from the host's features
+    assert keys.platform.__wrapped__()["cpu"]["features"] != host["features"] or "+avx" not in host["features"]
 
 
 def test_view_keys_cover_figures_analysis_and_the_diagnosis():
