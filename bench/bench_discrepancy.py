@@ -163,45 +163,14 @@ def point_ids(n_points: int, n_ramps: int) -> list:
     return ids + ramps[:n_ramps]
 
 
-def openblas_kernels() -> dict:
-    """The kernel each OpenBLAS loaded in this process runs (numpy's and scipy's bundle one
-    each), by library file name: {} where none can be asked (not Linux, or another BLAS)."""
-    import ctypes
-
-    import scipy.linalg  # noqa: F401 - loads scipy's own OpenBLAS, which the diagnosis uses too
-
-    out = {}
-    try:
-        with open("/proc/self/maps", encoding="utf-8") as fh:
-            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
-    except OSError:
-        return out
-    for path in paths:
-        lib = ctypes.CDLL(path)
-        for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename64_",
-                     "openblas_get_corename"):
-            fn = getattr(lib, name, None)
-            if fn is not None:
-                fn.restype = ctypes.c_char_p
-                out[os.path.basename(path)] = fn().decode()
-                break
-    return out
-
-
 def machine() -> dict:
-    """What a result line's figures depend on besides the code and the case: the versions and
-    the CPU numba compiles for (:func:`dampersim.keys.platform`), the CPU features numpy reads
-    (a group switched off by NPY_DISABLE_CPU_FEATURES, such as X86_V3, reads off while its
-    members may still read on), the OpenBLAS kernels (:func:`openblas_kernels`), and those of
+    """What a result line's figures depend on besides the code and the case: the versions, the
+    CPU numba compiles for, the CPU features numpy reads (a group switched off by
+    NPY_DISABLE_CPU_FEATURES, such as X86_V3, reads off while its members may still read on)
+    and the OpenBLAS kernels (:func:`dampersim.keys.platform`), and those of
     :data:`FLOAT_PATH_ENV` that are set. The same case moves with them, by more than its
     printed digits, where its truth or its model is chaotic."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_features__ as feats
-        simd = sorted(k for k, on in feats.items() if on)
-    except ImportError:  # numpy's internal layout moved: say so rather than guess
-        simd = ["unknown"]
-    return {**platform(), "numpy_simd": simd, "openblas": openblas_kernels(),
-            "env": {k: os.environ[k] for k in FLOAT_PATH_ENV if k in os.environ}}
+    return {**platform(), "env": {k: os.environ[k] for k in FLOAT_PATH_ENV if k in os.environ}}
 
 
 def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, recommend: bool = True) -> dict:

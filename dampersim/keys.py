@@ -192,10 +192,11 @@ def _version(dist: str) -> str:
 @functools.lru_cache(maxsize=1)
 def platform() -> dict:
     """What besides our source can change a computed number: the Python, numpy, scipy
-    (filters), numba and llvmlite versions and the CPU numba compiles for (name and
+    (filters), numba and llvmlite versions, the CPU features numpy dispatches on, the
+    OpenBLAS kernels (:func:`blas_kernels`) and the CPU numba compiles for (name and
     feature string: the host's unless NUMBA_CPU_NAME or NUMBA_CPU_FEATURES choose another
     target, as numba's own code generator reads them; a kernel built for a generic x86-64
-    moves a chaotic campaign's orders by up to 4.6 repeatabilities, docs/discrepancy.md,
+    moves a chaotic campaign's orders by up to 1.4 repeatabilities, docs/discrepancy.md,
     Known limits)."""
     try:
         from llvmlite import binding as llvm
@@ -209,6 +210,11 @@ def platform() -> dict:
         cpu = {"name": name, "features": codegen.get_host_cpu_features() if features is None else features}
     except Exception as exc:  # llvmlite missing or unable to tell: say so in the key
         cpu = {"name": "unknown", "error": type(exc).__name__}
+    try:  # numpy's runtime dispatch (NPY_DISABLE_CPU_FEATURES switches groups such as X86_V3 off)
+        from numpy._core._multiarray_umath import __cpu_features__ as feats
+        numpy_cpu = sorted(k for k, on in feats.items() if on)
+    except ImportError:  # numpy's internal layout moved: say so in the key
+        numpy_cpu = ["unknown"]
     return {
         "python": _platform.python_version(),
         "machine": _platform.machine(),
@@ -217,7 +223,40 @@ def platform() -> dict:
         "numba": _version("numba"),
         "llvmlite": _version("llvmlite"),
         "cpu": cpu,
+        "numpy_cpu": numpy_cpu,
+        "blas": blas_kernels(),
     }
+
+
+def blas_kernels() -> dict:
+    """The kernel each OpenBLAS loaded in this process runs (numpy and scipy bundle one each;
+    OPENBLAS_CORETYPE or another CPU picks another), by library file name; {} where none can
+    be asked (not Linux, or another BLAS). The diagnosis's linear algebra runs on them, and
+    its path, in a chaotic campaign, moves with their rounding (docs/discrepancy.md, Known
+    limits)."""
+    import ctypes
+
+    import scipy.linalg  # noqa: F401 - loads scipy's own OpenBLAS
+
+    out = {}
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as fh:
+            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
+    except OSError:
+        return out
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename64_",
+                     "openblas_get_corename"):
+            fn = getattr(lib, name, None)
+            if fn is not None:
+                fn.restype = ctypes.c_char_p
+                out[Path(path).name] = fn().decode()
+                break
+    return out
 
 
 # --------------------------------------------------------------------------- keys

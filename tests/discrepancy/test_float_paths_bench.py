@@ -50,6 +50,4 @@ def test_a_result_line_records_the_float_path(monkeypatch):
     monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
     m = b.machine()
     assert m["env"] == {"NUMBA_CPU_NAME": "generic"}  # only the settings that are set
-    assert {"numpy", "scipy", "numba", "llvmlite", "cpu", "openblas"} <= set(m)
-    assert m["numpy_simd"] != ["unknown"]
-    assert m["machine"] != "x86_64" or "SSE2" in m["numpy_simd"]  # x86-64's baseline is always on
+    assert {"numpy", "scipy", "numba", "llvmlite", "cpu", "numpy_cpu", "blas"} <= set(m)

@@ -1,7 +1,11 @@
 """Cache keys: source hashes follow the imports, so a changed module changes the key."""
 
+import json
 import math
+import os
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -92,6 +96,23 @@ def test_platform_names_the_target_numba_was_told_to_compile_for(monkeypatch):
     monkeypatch.setattr(config, "CPU_FEATURES", None)
     monkeypatch.setattr(config, "ENABLE_AVX", False)  # numba then drops AVX from the host's features
     assert keys.platform.__wrapped__()["cpu"]["features"] != host["features"] or "+avx" not in host["features"]
+
+
+def test_platform_names_the_blas_kernel_and_numpy_s_features():
+    # the diagnosis's path moves with the BLAS kernel's rounding and numpy's dispatch
+    # (docs/discrepancy.md, Known limits): both are read in a fresh process, as set at start
+    code = "import json, dampersim.keys as k; p = k.platform(); print(json.dumps([p['blas'], p['numpy_cpu']]))"
+
+    def run(**env):
+        base = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")}
+        out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
+                             check=True)
+        return json.loads(out.stdout)
+
+    host_blas, host_cpu = run()
+    blas, cpu = run(OPENBLAS_CORETYPE="Sandybridge", NPY_DISABLE_CPU_FEATURES="X86_V3")
+    assert host_blas and set(blas) == set(host_blas) and set(blas.values()) == {"Sandybridge"}
+    assert "X86_V3" not in cpu and set(cpu) <= set(host_cpu)
 
 
 def test_view_keys_cover_figures_analysis_and_the_diagnosis():
