@@ -18,10 +18,11 @@ OpenBLAS's kernels), posterior of "none" and of the absorber, the absorber's fit
 training reduced chi^2, model runs, wall time, and how far its synthesised measured output
 orders lie from the host's, per point as the largest |difference| over the orders in units
 of the host's repeatability term of that cell as the diagnosis forms it
-(likelihood.sigma_variances; 0 where the syntheses agree). Only the kernel's code moves the synthesised data: where the truth run is chaotic by up to 1.44
-(control) and 0.81 (absorber) of that term, elsewhere by less than 0.03. The other variants
-leave the data alone and move the diagnosis's path. docs/discrepancy.md (Known limits)
-quotes the figures.
+(likelihood.sigma_variances; 0 where the syntheses agree). Only the kernel's code moves the
+synthesised data: where the truth run is chaotic by up to 1.44 (control) and 0.81 (absorber)
+of that term, elsewhere by less than 0.03. The other variants leave the data unchanged to
+the printed digits and move the diagnosis's path. docs/discrepancy.md (Known limits) quotes
+the figures.
 
     python bench/bench_float_paths.py                       # all four, one after another
     python bench/bench_float_paths.py --variants host numba-generic

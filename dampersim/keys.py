@@ -25,6 +25,7 @@ import functools
 import hashlib
 import importlib.metadata
 import json
+import os
 import platform as _platform
 import re
 from pathlib import Path
@@ -229,34 +230,44 @@ def platform() -> dict:
 
 
 def blas_kernels() -> dict:
-    """The kernel each OpenBLAS loaded in this process runs (numpy and scipy bundle one each;
-    OPENBLAS_CORETYPE or another CPU picks another), by library file name; {} where none can
-    be asked (not Linux, or another BLAS). The diagnosis's linear algebra runs on them, and
-    its path, in a chaotic campaign, moves with their rounding (docs/discrepancy.md, Known
-    limits)."""
-    import ctypes
-
-    import scipy.linalg  # noqa: F401 - loads scipy's own OpenBLAS
-
-    out = {}
+    """The kernel each OpenBLAS that numpy and scipy bundle runs in this process
+    (OPENBLAS_CORETYPE or another CPU picks another), by library file name: {} where none can
+    be asked (not Linux, another BLAS, or a build that links a system OpenBLAS), and
+    ``{"error": ...}`` if asking failed, so that a key can always be made. The diagnosis's
+    linear algebra runs on these kernels, and its path, in a chaotic campaign, moves with
+    their rounding (docs/discrepancy.md, Known limits)."""
     try:
-        with open("/proc/self/maps", encoding="utf-8") as fh:
-            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
-    except OSError:
-        return out
-    for path in paths:
-        try:
+        import ctypes
+
+        import scipy
+        import scipy.linalg  # noqa: F401 - loads scipy's own OpenBLAS
+
+        # only the wheels' own library folders: another package's OpenBLAS in this process
+        # must not change the key (a worker that did not import it would disagree)
+        own = tuple(str(Path(m.__file__).resolve().parent.parent / f"{m.__name__}.libs") + os.sep
+                    for m in (np, scipy))
+        paths = set()
+        with open("/proc/self/maps", "rb") as fh:
+            for ln in fh:
+                fields = ln.rstrip(b"\n").split(maxsplit=5)  # the path may hold spaces
+                path = os.fsdecode(fields[5]).removesuffix(" (deleted)") if len(fields) == 6 else ""
+                if path.startswith(own) and "openblas" in Path(path).name.lower():
+                    paths.add(path)
+        out = {}
+        for path in sorted(paths):
             lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename64_",
-                     "openblas_get_corename"):
-            fn = getattr(lib, name, None)
-            if fn is not None:
-                fn.restype = ctypes.c_char_p
-                out[Path(path).name] = fn().decode()
-                break
-    return out
+            for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename64_",
+                         "openblas_get_corename"):
+                fn = getattr(lib, name, None)
+                if fn is not None:
+                    fn.restype = ctypes.c_char_p
+                    out[Path(path).name] = fn().decode(errors="replace")
+                    break
+        return out
+    except FileNotFoundError:  # no /proc: not Linux
+        return {}
+    except Exception as exc:  # never let the probe stop a key from being made; say so in it
+        return {"error": type(exc).__name__}
 
 
 # --------------------------------------------------------------------------- keys

@@ -365,8 +365,9 @@ def _run(system, points, executor, address, workers, progress, is_cancelled,
             if tuple(theirs[:2]) == tuple(env[:2]):
                 return InputError(
                     "a worker runs the same dampersim on another platform (numpy/scipy/numba/llvmlite "
-                    "version or CPU target; results are keyed by the platform, since fast-math rounding "
-                    "differs between them): run the sweep on workers of this machine's kind, or "
+                    "version, numba's CPU target, numpy's CPU features or the OpenBLAS kernel, e.g. set by "
+                    "OPENBLAS_CORETYPE; results are keyed by the platform, since rounding differs between "
+                    "them): run the sweep on workers of this machine's kind and environment, or "
                     "with executor='processes'"
                 )
             return InputError(

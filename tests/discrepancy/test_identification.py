@@ -37,21 +37,22 @@ TRUE_INERTIA = 0.002  # [kg m^2] the library's strong absorber
 #: rest; run alone they take both. Every model run is deterministic: the count changes no number.
 WORKERS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else 2
 
-#: lower bounds of the clean campaign's held-out and training reduced chi^2, each about half
-#: the smallest value it took over four floating-point paths of one machine (held out 0.148,
-#: 0.157, 0.306, 0.321; training 0.451, 0.464, 0.551, 0.574: `python bench/bench_float_paths.py`,
-#: commit 5d07e95). Not near 1: the uncertainties are inflated (the hard benchmark's 22
-#: controls read 0.08 to 2.58 held out, median 0.24, 15 below 0.5; docs/discrepancy.md, "The
-#: remaining controls on commit f163644"), and this one campaign's value is a draw that
-#: moves with how the machine rounds: its truth runs are chaotic at three of the nine points
-#: (their measured orders move by up to 1.4 times the diagnosis's repeatability term with the
-#: kernel's machine code), and the diagnosis's own path moves with the BLAS kernel (the same
-#: measured data gave 0.148 and 0.306, in 987 and 963 model runs). The held-out bound was 0.3 from commit 0080e51 on;
-#: on 63b85cc it held on one machine and failed (0.148) on another. To first order (the same
-#: path, the residuals unchanged) a change that inflates every cell's variance by more than
-#: 2.1 times fails the held-out bound on the path that gave 0.148, but only beyond 4.6 times on
-#: the one that gave 0.321; the training bound, whose spread is narrower, fails beyond 2.3 and
-#: 2.9 times, so a doubled sigma (variance times 4) fails on every path measured.
+#: lower bounds of the clean campaign's held-out and training reduced chi^2, each about half the
+#: smallest value it took over four floating-point paths of one machine (held out / training:
+#: host 0.148 / 0.464, numba generic 0.321 / 0.551, numpy without X86_V3 0.157 / 0.451, OpenBLAS
+#: Sandybridge 0.306 / 0.574: `python bench/bench_float_paths.py`, commit 5d07e95). Not near 1:
+#: the uncertainties are inflated (the hard benchmark's 22 controls read 0.08 to 2.58 held out,
+#: median 0.24, 15 below 0.5; docs/discrepancy.md, "The remaining controls on commit f163644"),
+#: and this one campaign's value is a draw that moves with how the machine rounds: its truth
+#: runs are chaotic at three of the nine points (their measured orders move by up to 1.4 times
+#: the diagnosis's repeatability term with the kernel's machine code), and the diagnosis's own
+#: path moves with the BLAS kernel (measured data the same to the bench's digits gave 0.148 and
+#: 0.306, in 987 and 963 model runs). The held-out bound was 0.3 from commit 0080e51 on; on
+#: 63b85cc it held on one machine and failed (0.148) on another. To first order (the same path,
+#: the residuals unchanged) a change that inflates every cell's variance by more than 2.1 times
+#: fails the held-out bound on the path that gave 0.148, but only beyond 4.6 times on the one
+#: that gave 0.321; the training bound, whose spread is narrower, fails beyond 2.3 to 2.9 times
+#: depending on the path, so a doubled sigma (variance times 4) fails on every path measured.
 HELD_OUT_CHI2_LOW = 0.07
 TRAIN_CHI2_LOW = 0.2
 

@@ -284,7 +284,7 @@ def test_unpolled_job_is_killed_with_its_children_after_the_idle_timeout(manager
     child_pid = int(child_file.read_text())
     # another tab keeps polling its own job: its polls run the reaper
     busy = Caller(manager, "sleep_and_return", {"sleep": 8.0})
-    wait_until(lambda: busy.poll() is not None and gone(job_pid) and gone(child_pid), 12, "the idle job's end")
+    wait_until(lambda: [busy.poll()] and gone(job_pid) and gone(child_pid), 12, "the idle job's end")
     # not before the timeout: a poll is recorded at most once per HEARTBEAT_INTERVAL_S, so
     # the recorded last poll can be that much older than the test's last poll call, and the
     # job may go idle_s - HEARTBEAT_INTERVAL_S after it (with 1 s against 1 s, as until commit

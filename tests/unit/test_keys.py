@@ -2,7 +2,9 @@
 
 import json
 import math
+import mmap
 import os
+import platform
 import shutil
 import subprocess
 import sys
@@ -98,6 +100,8 @@ def test_platform_names_the_target_numba_was_told_to_compile_for(monkeypatch):
     assert keys.platform.__wrapped__()["cpu"]["features"] != host["features"] or "+avx" not in host["features"]
 
 
+@pytest.mark.skipif(sys.platform != "linux" or platform.machine() != "x86_64",
+                    reason="the OpenBLAS kernel names and numpy's X86_V3 group are those of x86-64 Linux wheels")
 def test_platform_names_the_blas_kernel_and_numpy_s_features():
     # the diagnosis's path moves with the BLAS kernel's rounding and numpy's dispatch
     # (docs/discrepancy.md, Known limits): both are read in a fresh process, as set at start
@@ -113,6 +117,19 @@ def test_platform_names_the_blas_kernel_and_numpy_s_features():
     blas, cpu = run(OPENBLAS_CORETYPE="Sandybridge", NPY_DISABLE_CPU_FEATURES="X86_V3")
     assert host_blas and set(blas) == set(host_blas) and set(blas.values()) == {"Sandybridge"}
     assert "X86_V3" not in cpu and set(cpu) <= set(host_cpu)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="/proc/self/maps is Linux's")
+def test_the_blas_probe_reads_odd_mapped_file_names(tmp_path):
+    # any file mapped into the process (a memmap, a database) is listed with its name, which
+    # need not be UTF-8 and may hold spaces: the probe must still find the kernels
+    odd = os.path.join(os.fsencode(tmp_path), "a caf\xe9 file".encode("latin-1"))
+    with open(odd, "wb") as fh:
+        fh.write(b"\0" * 4096)
+    with open(odd, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ):
+        kernels = keys.blas_kernels()
+    assert "error" not in kernels, kernels
+    assert kernels == keys.platform()["blas"]
 
 
 def test_view_keys_cover_figures_analysis_and_the_diagnosis():
