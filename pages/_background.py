@@ -241,6 +241,9 @@ class JobQueueManager(DiskcacheManager):
         try:
             self.registry.heartbeat(waiter)
         except sqlite3.Error as exc:
+            # not recorded: the next poll tries again instead of a second later, or a busy
+            # registry would age the waiter's last poll towards the idle timeout
+            self._beats.pop(waiter, None)
             LOGGER.warning("job registry heartbeat: %s", exc)
 
     def _fresh(self, name, seq):

@@ -18,6 +18,7 @@ import dataclasses
 import multiprocessing
 import os
 import signal
+import sqlite3
 import subprocess
 import time
 
@@ -291,6 +292,23 @@ def test_unpolled_job_is_killed_with_its_children_after_the_idle_timeout(manager
     # ee4d119, this check allowed 0.5 s the throttle does not grant, and failed on a loaded machine)
     assert time.monotonic() - last_poll[0] >= idle_s - _background.HEARTBEAT_INTERVAL_S
     assert forgotten.poll() is False
+
+
+def test_a_heartbeat_the_registry_refused_is_tried_again_at_the_next_poll(manager_factory):
+    # the throttle (one heartbeat per HEARTBEAT_INTERVAL_S) must count recorded beats only
+    manager = manager_factory(max_jobs=1)
+    calls = []
+
+    def flaky(waiter):
+        calls.append(waiter)
+        if len(calls) == 1:
+            raise sqlite3.OperationalError("database is locked")
+
+    manager.registry.heartbeat = flaky
+    manager._beat("w")
+    manager._beat("w")  # at once: the first was not recorded
+    manager._beat("w")  # at once again: the second was
+    assert calls == ["w", "w"]
 
 
 def test_killed_job_process_is_reported_as_failed(manager_factory):
