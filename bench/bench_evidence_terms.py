@@ -63,7 +63,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_sigma_terms as S  # noqa: E402 - the hard matrix's cases and campaigns, as that bench builds them
 
 from dampersim.discrepancy import diagnose as dg  # noqa: E402
-from dampersim.discrepancy import drive, naming, ramp_models, selection  # noqa: E402
+from dampersim.discrepancy import drive, ramp_models, ramps, selection  # noqa: E402
 from dampersim.discrepancy.effects import info, with_effect  # noqa: E402
 from dampersim.discrepancy.fitting import CALIBRATION, calibrated_system  # noqa: E402
 
@@ -92,8 +92,7 @@ def ramp_profile(fit, ramp_lik, points, ll_none: float, ll_lin: float, workers: 
     n_cal = len(CALIBRATION)
     u0, var0 = math.log(fit["m"]), max(float(fit["cov"][n_cal, n_cal]), 1e-12)
     span = max(ramp_models.RAMP_SEARCH, 4.0 * math.sqrt(var0))
-    lo = math.log(naming.clip_magnitude(name, math.exp(u0 - span)))
-    hi = math.log(naming.clip_magnitude(name, math.exp(u0 + span)))
+    lo, hi = ramp_models.log_range(name, u0, span)
     us = np.linspace(lo, hi, PROFILE_POINTS) if hi > lo else np.array([u0])
     systems = [with_effect(fit["system"], name, {info(name).magnitude: math.exp(u)}) for u in us]
     with drive.Runner(workers) as runner:
@@ -101,8 +100,7 @@ def ramp_profile(fit, ramp_lik, points, ll_none: float, ll_lin: float, workers: 
     cols = np.column_stack(ramp_lik.cols_x)
     rel = []
     for k in range(len(us)):
-        w = {p.id: (o["windup"] if "windup" in o else o.get("error", "no result"))
-             for p, o in zip(points, out[k * len(points):(k + 1) * len(points)])}
+        w = ramps.windups(points, out[k * len(points):(k + 1) * len(points)])
         rel.append(ramp_lik.predictive(w, cols, fit["cov"][:n_cal, :n_cal])[0] - ll_none)
     rel = np.array(rel)
     ok = np.isfinite(rel)

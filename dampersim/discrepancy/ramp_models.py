@@ -66,6 +66,12 @@ def evidence(runner, system, x, models, points):
     return lik_r, runs, ll, chi
 
 
+def log_range(name: str, u0: float, span: float) -> tuple:
+    """The log-magnitude range u0 ± span of effect ``name``, kept inside its accepted range."""
+    return (math.log(naming.clip_magnitude(name, math.exp(u0 - span))),
+            math.log(naming.clip_magnitude(name, math.exp(u0 + span))))
+
+
 def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     """Size the single effect of ``fit`` by the ramps: a bounded search in log magnitude
     (RAMP_SEARCH around the torsional fit) of the ramps' predictive log likelihood plus the
@@ -81,8 +87,7 @@ def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     e = info(name)
     n_cal = len(CALIBRATION)
     u0 = math.log(fit["m"])
-    lo = math.log(naming.clip_magnitude(name, math.exp(u0 - RAMP_SEARCH)))
-    hi = math.log(naming.clip_magnitude(name, math.exp(u0 + RAMP_SEARCH)))
+    lo, hi = log_range(name, u0, RAMP_SEARCH)
     var0 = max(float(fit["cov"][n_cal, n_cal]), 1e-12)
     cov_x = fit["cov"][:n_cal, :n_cal]
     seen = {}
@@ -114,4 +119,4 @@ def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     return True
 
 
-__all__ = ["RAMP_SEARCH", "RAMP_UPDATE_MIN", "evidence", "magnitude", "size_by_ramps"]
+__all__ = ["RAMP_SEARCH", "RAMP_UPDATE_MIN", "evidence", "log_range", "magnitude", "size_by_ramps"]

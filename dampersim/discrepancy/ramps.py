@@ -101,8 +101,12 @@ def ramp_reference(ll: dict) -> str:
 
 def run_ramps(runner, system, points) -> dict:
     """{point id: simulated windup [rad] on the record's time base, or the run's error text}."""
-    out = runner.map([(drive.diagnosis_system(system), p) for p in points])
-    return {p.id: (o["windup"] if "windup" in o else o.get("error", "no result")) for p, o in zip(points, out)}
+    return windups(points, runner.map([(drive.diagnosis_system(system), p) for p in points]))
+
+
+def windups(points, outs) -> dict:
+    """{point id: windup [rad], or the run's error text} of the runs ``outs`` of ``points``."""
+    return {p.id: (o["windup"] if "windup" in o else o.get("error", "no result")) for p, o in zip(points, outs)}
 
 
 class RampLikelihood:
@@ -297,6 +301,6 @@ def errors_and_traces(stages: dict, points) -> tuple:
 
 
 __all__ = ["RAMP_SAMPLE_HZ", "OFFSET_PRIOR_DEG", "WINDUP_FLOOR_DEG", "effective_share", "ramp_reference", "windup_noise",
-           "run_ramps",
+           "run_ramps", "windups",
            "RampLikelihood",
            "ramp_likelihood", "errors_and_traces"]
