@@ -2,9 +2,10 @@
 
 The campaigns of tests/discrepancy/test_identification.py (bench_control_misfit.py's
 ``ci-control`` with no acquisition chain, the clean test's, and ``ci-absorber`` with the
-random chain of seed 3, the absorber test's: 18/8 model, 24/10 truth, nine points of 0.8 s,
-3 % perturbation, seed 3) are synthesised and diagnosed once per variant, each in a process
-of its own whose environment changes only how the same arithmetic is compiled or dispatched:
+random chain of seed 3, the absorber test's: 18/8 model, 24/10 truth, points of 0.8 s, 3 %
+perturbation, seed 3; ``--points 8`` the strict clean test's eight, the default all nine)
+are synthesised and diagnosed once per variant, each in a process of its own whose
+environment changes only how the same arithmetic is compiled or dispatched:
 
     host            as installed (numba compiles for this CPU, numpy and OpenBLAS pick theirs)
     numba-generic   NUMBA_CPU_NAME=generic: the kernel compiled for a generic x86-64
@@ -20,13 +21,15 @@ orders lie from the host's, per point as the largest |difference| over the order
 of the host's repeatability term of that cell as the diagnosis forms it
 (likelihood.sigma_variances; 0 where the syntheses agree). Only the kernel's code moves the
 synthesised data: where the truth run is chaotic by up to 1.44 (control) and 0.81 (absorber)
-of that term, elsewhere by less than 0.03. The other variants leave the data unchanged to
+of that term on the nine points, 0.80 on the control's eight, elsewhere by less than 0.03.
+The other variants leave the data unchanged to
 the printed digits and move the diagnosis's path. docs/discrepancy.md (Known limits) quotes
 the figures.
 
     python bench/bench_float_paths.py                       # all four, one after another
     python bench/bench_float_paths.py --variants host numba-generic
     python bench/bench_float_paths.py --case ci-absorber
+    python bench/bench_float_paths.py --points 8            # the strict clean test's campaign
 """
 
 from __future__ import annotations
@@ -60,7 +63,7 @@ def variant_env(name: str, environ) -> dict:
     return {**{k: v for k, v in environ.items() if k not in B.FLOAT_PATH_ENV}, **VARIANTS[name]}
 
 
-def worker(out: str, case: str, workers: int) -> None:
+def worker(out: str, case: str, workers: int, points: int = len(M.CI_POINTS)) -> None:
     """Synthesise and diagnose a CI campaign in this process; write the measured coefficients,
     the diagnosis's repeatability term per cell and the diagnosis's figures to ``out`` (JSON)."""
     from dampersim.discrepancy import drive, likelihood, synth
@@ -73,8 +76,8 @@ def worker(out: str, case: str, workers: int) -> None:
     effects, daq = M.CI_CASES[case]
     with tempfile.TemporaryDirectory() as d:
         camp = os.path.join(d, "campaign")
-        synth.synthesize(camp, effects=effects, perturb=0.03, seed=M.CI_SEED, points=M.CI_POINTS, record=0.8,
-                         workers=workers, daq=M.ci_daq(daq), base=base)
+        synth.synthesize(camp, effects=effects, perturb=0.03, seed=M.CI_SEED, points=M.CI_POINTS[:points],
+                         record=0.8, workers=workers, daq=M.ci_daq(daq), base=base)
         c = read_campaign(camp)
         coef = np.array([likelihood.measured_coefficients(p, drive.ORDERS) for p in c.points])
         half = np.array([likelihood.split_half_sigma(p, drive.ORDERS) for p in c.points])
@@ -112,10 +115,11 @@ def main(argv=None):
     ap.add_argument("--case", choices=("ci-control", "ci-absorber"), default="ci-control")
     ap.add_argument("--variants", nargs="+", choices=tuple(VARIANTS), default=list(VARIANTS))
     ap.add_argument("--workers", type=int, default=2)
+    M.add_ci_points(ap)
     ap.add_argument("--worker", metavar="OUT", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
-        worker(args.worker, args.case, args.workers)
+        worker(args.worker, args.case, args.workers, args.points)
         return
     variants = ["host"] + [v for v in dict.fromkeys(args.variants) if v != "host"]  # the reference runs first
     docs = {}
@@ -124,12 +128,12 @@ def main(argv=None):
             env = variant_env(name, os.environ)
             out = os.path.join(d, f"{name}.json")
             subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", out, "--case", args.case,
-                            "--workers", str(args.workers)], env=env, check=True)
+                            "--workers", str(args.workers), "--points", str(args.points)], env=env, check=True)
             with open(out) as f:
                 docs[name] = json.load(f)
             r = docs[name]
             moved = spread(docs["host"], r)
-            print(json.dumps({"case": args.case, "variant": name, "env": r["machine"]["env"], "verdict": r["verdict"],
+            print(json.dumps({"case": args.case, "points": args.points, "variant": name, "env": r["machine"]["env"], "verdict": r["verdict"],
                               "none": r["none"], "pendulum_absorber": r["absorber"], "inertia": r["inertia"],
                               "interval": r["interval"], "reduced_chi2_held_out_calibrated": r["held_out_calibrated"],
                               "reduced_chi2_held_out": r["held_out"], "reduced_chi2_train": r["train"],

@@ -51,3 +51,38 @@ def test_a_result_line_records_the_float_path(monkeypatch):
     m = b.machine()
     assert m["env"] == {"NUMBA_CPU_NAME": "generic"}  # only the settings that are set
     assert {"numpy", "scipy", "numba", "llvmlite", "cpu", "numpy_cpu", "blas"} <= set(m)
+
+
+def test_the_benches_ci_points_are_the_strict_tests_campaigns(bench, monkeypatch, capsys):
+    # `--points 8` must diagnose what the strict clean test of tests/discrepancy/test_identification.py
+    # diagnoses, and the default (the absorber test's) the nine the docs quote up to commit a8d5936
+    import argparse
+    import json
+
+    from tests.discrepancy import test_identification as T
+
+    m = bench.M
+    assert m.CI_POINTS[:m.CI_CONTROL_POINTS] == T.CONTROL_POINTS and m.CI_POINTS == T.POINTS
+    assert m.CI_CANDIDATES == T.CANDIDATES
+    ap = argparse.ArgumentParser()
+    m.add_ci_points(ap)
+    assert ap.parse_args([]).points == 9 and ap.parse_args(["--points", "8"]).points == 8
+    for bad in ("2", "10", "x"):
+        with pytest.raises(SystemExit):
+            ap.parse_args(["--points", bad])
+    # the parent hands the count to the process that synthesises and diagnoses
+    seen = []
+
+    def run(argv, env, check):
+        seen.append(argv)
+        doc = {"verdict": "no_missing_effect", "none": 1.0, "absorber": 0.0, "inertia": None, "interval": None,
+               "held_out_calibrated": 0.3, "held_out": 0.3, "train": 0.3, "noise_level": 1.5, "runs": 1, "wall_s": 1.0,
+               "machine": {"env": {}, "cpu": {"name": "x"}, "numpy_cpu": [], "blas": {}},
+               "coef": {"p": [[1.0], [0.0]]}, "sigma": {"p": [1.0]}}
+        with open(argv[argv.index("--worker") + 1], "w") as f:
+            json.dump(doc, f)
+
+    monkeypatch.setattr(bench.subprocess, "run", run)
+    bench.main(["--points", "8", "--variants", "host"])
+    assert len(seen) == 1 and seen[0][seen[0].index("--points") + 1] == "8"
+    assert json.loads(capsys.readouterr().out.splitlines()[-1])["points"] == 8
