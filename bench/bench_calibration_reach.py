@@ -4,9 +4,9 @@ The diagnosis calibrates six log scale factors (``fitting.CALIBRATION``) on the 
 points. For a synthetic campaign the truth's factors are known up to what the calibration
 cannot follow (``fitting.UNCALIBRATED``): each group's factor is the mean log ratio of its
 members' truth values to the diagnosed set's ("projected"). This bench diagnoses one of the
-strict CI identification campaigns (bench_control_misfit.py's ``ci-control`` or
-``ci-absorber``: 18/8 model, 24/10 truth, nine points of 0.8 s, 3 % perturbation, seed 3;
-``--daq`` as there) and prints, as one JSON line:
+strict CI identification campaigns as they were up to commit a8d5936
+(bench_control_misfit.py's ``ci-control`` or ``ci-absorber``: 18/8 model, 24/10 truth, nine
+points of 0.8 s, 3 % perturbation, seed 3; ``--daq`` as there) and prints, as one JSON line:
 
 * the calibrated factors (the calibration's own, before any effect is fitted with them) and
   the projected ones (log);

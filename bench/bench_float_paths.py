@@ -133,7 +133,8 @@ def main(argv=None):
                 docs[name] = json.load(f)
             r = docs[name]
             moved = spread(docs["host"], r)
-            print(json.dumps({"case": args.case, "points": args.points, "variant": name, "env": r["machine"]["env"], "verdict": r["verdict"],
+            print(json.dumps({"case": args.case, "points": args.points, "variant": name, "env": r["machine"]["env"],
+                              "verdict": r["verdict"],
                               "none": r["none"], "pendulum_absorber": r["absorber"], "inertia": r["inertia"],
                               "interval": r["interval"], "reduced_chi2_held_out_calibrated": r["held_out_calibrated"],
                               "reduced_chi2_held_out": r["held_out"], "reduced_chi2_train": r["train"],

@@ -22,9 +22,10 @@ fine truth driven by the record|^2 over each estimate's variance, pooled per ord
 diagnosis pools it (likelihood.sigma_variances): 1 for an honest estimate, below 1 for an
 inflated one; and per order the RMS of that misfit and of each estimate [N m].
 
-Campaigns: ``ci-control`` and ``ci-absorber`` (bench_control_misfit.py's, the strict CI
-identification tests' campaigns) and ``benchmark`` (its 12-point no-effect campaign, 10 %
-perturbation, -2 dB noise).
+Campaigns: ``ci-control`` and ``ci-absorber`` (bench_control_misfit.py's, on nine points:
+the strict CI identification tests' campaigns up to commit a8d5936; the clean test now
+diagnoses eight) and ``benchmark`` (its 12-point no-effect campaign, 10 % perturbation,
+-2 dB noise).
 
 ``--diagnose`` then diagnoses the CI control campaign with ``--daq`` (default ``random``)
 twice, with each estimate as the repeatability term (the diagnosis's ``repeatability``

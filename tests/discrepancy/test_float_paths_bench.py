@@ -86,3 +86,10 @@ def test_the_benches_ci_points_are_the_strict_tests_campaigns(bench, monkeypatch
     bench.main(["--points", "8", "--variants", "host"])
     assert len(seen) == 1 and seen[0][seen[0].index("--points") + 1] == "8"
     assert json.loads(capsys.readouterr().out.splitlines()[-1])["points"] == 8
+
+
+def test_the_worker_process_diagnoses_the_points_it_is_given(bench, monkeypatch, tmp_path):
+    calls = []
+    monkeypatch.setattr(bench, "worker", lambda *a: calls.append(a))
+    bench.main(["--worker", str(tmp_path / "o.json"), "--case", "ci-absorber", "--workers", "1", "--points", "8"])
+    assert calls == [(str(tmp_path / "o.json"), "ci-absorber", 1, 8)]

@@ -52,7 +52,7 @@ WORKERS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else 2
 #: smallest value it took over four floating-point paths of one machine (held out / training on
 #: the eight points: host 0.314 / 0.299, numba generic 0.284 / 0.286, numpy without X86_V3
 #: 0.261 / 0.283, OpenBLAS Sandybridge 0.270 / 0.322: `python bench/bench_float_paths.py --points
-#: 8`, library as on commit a8d5936). Not near 1: the uncertainties are inflated (the hard
+#: 8 --workers 1`, library as on commit a8d5936). Not near 1: the uncertainties are inflated (the hard
 #: benchmark's 22 controls read 0.08 to 2.58 held out, median 0.24, 15 below 0.5;
 #: docs/discrepancy.md, "The remaining controls on commit f163644"), and this one campaign's value
 #: is a draw that moves with how the machine rounds: its truth runs are chaotic at three of the
@@ -75,7 +75,7 @@ BASE = at_thesis_segments()
 def _diagnosis(tmp_path_factory, name, effects, points, daq=None):
     d = tmp_path_factory.mktemp(name)
     synthesize(d / "c", effects=effects, perturb=0.03, seed=3, truth=d / "truth.json", points=points, record=0.8,
-               daq=daq, base=BASE, workers=WORKERS)  # the truth's runs are seeded per point: any count gives the same
+               daq=daq, base=BASE, workers=WORKERS)  # seeded per point: any worker count gives the same
     return diagnose(read_campaign(d / "c"), BASE, workers=WORKERS, candidates=CANDIDATES, calibration_iterations=3,
                     shortlist=2, recommend=False)
 
