@@ -42,10 +42,9 @@ def cache_dir(tmp_path, monkeypatch):
 #: beside the rest of the suite, which keeps its collection order in the other process: the
 #: strict identification diagnoses and, to even the two lanes, the studies, which only compute
 #: (no server, browser, port or process watch of their own). Per-module times of a fresh-clone
-#: `make test` on 2 cores (`PYTEST_ARGS="--durations=0" make test`, measured with
-#: tests/discrepancy/test_failed_runs.py in this lane as well): identification 685 s, studies
-#: 132 s, failed runs 35 s, the rest of the suite 784 s. With the failed-run checks back in the
-#: other lane, this lane takes about 817 s and the other about 819 s.
+#: `make test` on 2 cores (`PYTEST_ARGS="--durations=0" make test`): identification 713 s and
+#: studies 140 s, so this lane 853 s; the other lane 825 s; the whole run 866 s. (A run with
+#: tests/discrepancy/test_failed_runs.py, 35 s, in this lane too gave 685, 132 and 784 s.)
 APART = (
     "tests/discrepancy/test_identification.py",
     "tests/studies/test_studies.py",

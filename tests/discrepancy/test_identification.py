@@ -5,8 +5,8 @@ rig does (estimated parameters perturbed by up to 3 %, finer springs and step, s
 channel gain errors and, for the absorber case, a random DAQ chain with skew, hum, offsets,
 drift and anti-alias filtering). Nine mapping points of 0.8 s for the absorber, the first eight
 for the control, three candidates, torsional points only: in `make test` the module takes
-685 s of one core beside the rest of the suite (`PYTEST_ARGS="--durations=0" make test` in a
-fresh clone); with nine points for both it took 856 s. These tests are strict:
+685 to 713 s of one core beside the rest of the suite (two fresh-clone runs of
+`PYTEST_ARGS="--durations=0" make test`); with nine points for both it took 856 s. These tests are strict:
 a change that stops the method naming the absorber as the most probable model with its
 magnitude, or that makes it name an effect in a clean campaign, fails here. The full
 benchmark lives in bench/bench_discrepancy.py.
