@@ -18,7 +18,8 @@ the strict clean test diagnoses 8, the absorber test all 9 (the default, and the
 campaign the docs quote up to commit a8d5936). ``--daq`` chooses their acquisition
 chain: ``none``, ``random`` (the one drawn from seed 3, the absorber test's), or a
 comma-separated list of that chain's parts to keep (``gains``, ``offsets``, ``drift``,
-``hum``, ``anti_alias``, ``skew``, ``ripple``).
+``hum``, ``anti_alias``, ``skew``, ``ripple``). ``--time-step`` sets the diagnosed model's step:
+the strict tests run at 1/40000 s (CI_TIME_STEP), the default is the parameter set's 1/120000 s.
 
 One JSON line per run: verdict, posterior, fitted effects, held-out reduced chi^2 of the
 calibrated and of the most probable model, training reduced chi^2, learning rate, the
@@ -28,7 +29,7 @@ wall time.
     python bench/bench_control_misfit.py                                  # the four truths
     python bench/bench_control_misfit.py --truths same fine
     python bench/bench_control_misfit.py --case ci-control --daq hum
-    python bench/bench_control_misfit.py --case ci-control --daq none --points 8   # the strict clean test's
+    python bench/bench_control_misfit.py --case ci-control --daq none --points 8 --time-step 1/40000  # strict test
     python bench/bench_control_misfit.py --case ci-absorber --daq none
     python bench/bench_control_misfit.py --case ci-absorber --floor 1e-4   # another uncertainty floor
     python bench/bench_control_misfit.py --case ci-control --derivative-steps 0.05 --estimate-sd 0
@@ -39,6 +40,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import tempfile
 import time
@@ -47,7 +49,7 @@ from dampersim.discrepancy import fitting, likelihood, synth
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.jsonsafe import jsonable
-from dampersim.parameters import at_thesis_segments
+from dampersim.parameters import at_thesis_segments, with_updates
 
 BENCH_POINTS = ["tc_1200", "tc_1600", "tc_2000", "tc_2400", "tc_2800", "map_900_150", "map_900_350", "map_1200_50",
                 "map_1200_250", "map_1200_500", "map_1500_150", "map_1500_350"]
@@ -61,6 +63,10 @@ TRUTHS = {"same": dict(perturb=0.0, daq=None, fine=False), "fine": dict(perturb=
 CI_POINTS = ["map_900_150", "map_1200_250", "map_1500_150", "map_1800_350", "map_2000_50", "map_1200_500",
              "map_1500_350", "map_1800_150", "map_900_350"]
 CI_CONTROL_POINTS = 8
+#: the strict CI tests' model step [s] (tests/discrepancy/test_identification.py TIME_STEP, after
+#: commit 0005f3a; up to then the parameter set's 1/120 000 s, which stays the default of
+#: ``--time-step``, so the commands docs/discrepancy.md quotes with earlier figures still give them)
+CI_TIME_STEP = 1 / 40000
 CI_CANDIDATES = ["pendulum_absorber", "turbine_drag", "transducer_bandwidth"]
 CI_SEED = 3
 #: per CI campaign: its hidden effects and its acquisition chain (ci_daq's spec)
@@ -117,6 +123,32 @@ def add_ci_points(ap) -> None:
                          "up to commit a8d5936)")
 
 
+def time_step(text: str) -> float:
+    """A step [s] written as a number or as ``1/N`` (e.g. ``1/40000``), checked positive."""
+    try:
+        num, slash, den = text.partition("/")
+        step = float(num) / float(den) if slash else float(num)
+    except (ValueError, ZeroDivisionError):
+        step = float("nan")
+    if not (step > 0.0 and math.isfinite(step)):
+        raise argparse.ArgumentTypeError(f"{text}: accepted is a positive step in seconds, as a number or 1/N")
+    return step
+
+
+def add_ci_time_step(ap) -> None:
+    """The checked ``--time-step`` option of the CI cases (shared with bench_float_paths.py)."""
+    ap.add_argument("--time-step", type=time_step, default=None,
+                    help="CI cases only: the diagnosed model's step [s], a number or 1/N (1/40000: the strict "
+                         "tests' since commit 0005f3a; default: the parameter set's 1/120000, theirs up to "
+                         "then)")
+
+
+def ci_base(step: float | None = None):
+    """The CI campaigns' diagnosed model: the thesis's 18/8 segments, at ``step`` [s] when given."""
+    base = at_thesis_segments()
+    return base if step is None else with_updates(base, {"solver.time_step": step})
+
+
 def _iterations(text: str) -> int:
     n = int(text)
     if not 1 <= n <= 50:
@@ -148,7 +180,8 @@ def run(label, effects, perturb, seed, points, record, daq, fine, base, diag_kw,
     return {"run": label, "verdict": dg["verdict"], "posterior": {k: v for k, v in dg["posterior"].items() if v},
             "effects": dg["effects"], "reduced_chi2_held_out_calibrated": lk["reduced_chi2_held_out_calibrated"],
             "reduced_chi2_held_out": lk["reduced_chi2_held_out"], "reduced_chi2_train": lk["reduced_chi2_train"],
-            "learning_rate": lk["learning_rate"], "nuisance": lk["nuisance"], "point_reduced_chi2": lk["point_reduced_chi2"],
+            "learning_rate": lk["learning_rate"], "nuisance": lk["nuisance"],
+            "point_reduced_chi2": lk["point_reduced_chi2"],
             "simulations": dg["simulations"], "wall_s": time.perf_counter() - t0}
 
 
@@ -158,6 +191,7 @@ def main(argv=None):
     ap.add_argument("--truths", nargs="+", choices=tuple(TRUTHS), default=list(TRUTHS), help="benchmark case only")
     ap.add_argument("--daq", default="random", help="CI cases only: none, random, or parts of the random chain")
     add_ci_points(ap)
+    add_ci_time_step(ap)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--floor", type=float, default=None,
                     help="the cell uncertainty's floor share (likelihood.SIGMA_FLOOR_SHARE) to diagnose with")
@@ -185,9 +219,10 @@ def main(argv=None):
             print(json.dumps(row), flush=True)
         return
     effects = CI_CASES[args.case][0]
-    row = run(f"{args.case} daq={args.daq} points={args.points} {floor}", effects, 0.03, CI_SEED,
-              CI_POINTS[:args.points], 0.8, ci_daq(args.daq),
-              True, at_thesis_segments(), dict(CI_DIAGNOSIS), args.workers)
+    base = ci_base(args.time_step)
+    row = run(f"{args.case} daq={args.daq} points={args.points} time_step={base.solver.time_step:.6g} {floor}",
+              effects, 0.03, CI_SEED, CI_POINTS[:args.points], 0.8, ci_daq(args.daq),
+              True, base, dict(CI_DIAGNOSIS), args.workers)
     print(json.dumps(row), flush=True)
 
 

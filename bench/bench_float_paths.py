@@ -3,7 +3,9 @@
 The campaigns of tests/discrepancy/test_identification.py (bench_control_misfit.py's
 ``ci-control`` with no acquisition chain, the clean test's, and ``ci-absorber`` with the
 random chain of seed 3, the absorber test's: 18/8 model, 24/10 truth, points of 0.8 s, 3 %
-perturbation, seed 3; ``--points 8`` the strict clean test's eight, the default all nine)
+perturbation, seed 3; ``--points 8`` the strict clean test's eight, the default all nine;
+``--time-step 1/40000`` the strict tests' model step after commit 0005f3a, the default the
+parameter set's 1/120000 s, theirs up to then)
 are synthesised and diagnosed once per variant, each in a process of its own whose
 environment changes only how the same arithmetic is compiled or dispatched:
 
@@ -29,7 +31,8 @@ the figures.
     python bench/bench_float_paths.py                       # all four, one after another
     python bench/bench_float_paths.py --variants host numba-generic
     python bench/bench_float_paths.py --case ci-absorber
-    python bench/bench_float_paths.py --points 8            # the strict clean test's campaign
+    python bench/bench_float_paths.py --points 8            # the strict clean test's campaign up to 0005f3a
+    python bench/bench_float_paths.py --points 8 --time-step 1/40000   # ... and since (its model's step)
 """
 
 from __future__ import annotations
@@ -63,15 +66,19 @@ def variant_env(name: str, environ) -> dict:
     return {**{k: v for k, v in environ.items() if k not in B.FLOAT_PATH_ENV}, **VARIANTS[name]}
 
 
-def worker(out: str, case: str, workers: int, points: int = len(M.CI_POINTS)) -> None:
-    """Synthesise and diagnose a CI campaign in this process; write the measured coefficients,
-    the diagnosis's repeatability term per cell and the diagnosis's figures to ``out`` (JSON)."""
+def worker(out: str, case: str, workers: int, points: int = len(M.CI_POINTS), step: float | None = None) -> None:
+    """Synthesise and diagnose a CI campaign in this process, the model at ``step`` [s] (None: the
+    parameter set's); write the measured coefficients, the diagnosis's repeatability term per cell
+    and the diagnosis's figures to ``out`` (JSON)."""
+    import warnings
+
     from dampersim.discrepancy import drive, likelihood, synth
     from dampersim.discrepancy.campaign import read_campaign
     from dampersim.discrepancy.diagnose import diagnose
-    from dampersim.parameters import at_thesis_segments
+    from dampersim.errors import AccuracyWarning
 
-    base = at_thesis_segments()
+    warnings.simplefilter("ignore", AccuracyWarning)  # a step above the checked one is the point of --time-step
+    base = M.ci_base(step)
     t0 = time.perf_counter()
     effects, daq = M.CI_CASES[case]
     with tempfile.TemporaryDirectory() as d:
@@ -92,7 +99,7 @@ def worker(out: str, case: str, workers: int, points: int = len(M.CI_POINTS)) ->
            "inertia": fitted and fitted["parameters"]["inertia"], "interval": fitted and fitted["intervals"]["inertia"],
            "held_out_calibrated": lk["reduced_chi2_held_out_calibrated"], "held_out": lk["reduced_chi2_held_out"],
            "train": lk["reduced_chi2_train"], "noise_level": lk["noise_level"], "runs": g.simulations,
-           "wall_s": time.perf_counter() - t0, "machine": B.machine(),
+           "wall_s": time.perf_counter() - t0, "machine": B.machine(), "time_step": base.solver.time_step,
            "coef": {k: [np.real(v).tolist(), np.imag(v).tolist()] for k, v in zip(ids, coef)},
            "sigma": {k: v.tolist() for k, v in zip(ids, sig)}}
     with open(out, "w") as f:
@@ -116,11 +123,13 @@ def main(argv=None):
     ap.add_argument("--variants", nargs="+", choices=tuple(VARIANTS), default=list(VARIANTS))
     ap.add_argument("--workers", type=int, default=2)
     M.add_ci_points(ap)
+    M.add_ci_time_step(ap)
     ap.add_argument("--worker", metavar="OUT", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
-        worker(args.worker, args.case, args.workers, args.points)
+        worker(args.worker, args.case, args.workers, args.points, args.time_step)
         return
+    step = [] if args.time_step is None else ["--time-step", repr(args.time_step)]
     variants = ["host"] + [v for v in dict.fromkeys(args.variants) if v != "host"]  # the reference runs first
     docs = {}
     with tempfile.TemporaryDirectory() as d:
@@ -128,13 +137,13 @@ def main(argv=None):
             env = variant_env(name, os.environ)
             out = os.path.join(d, f"{name}.json")
             subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", out, "--case", args.case,
-                            "--workers", str(args.workers), "--points", str(args.points)], env=env, check=True)
+                            "--workers", str(args.workers), "--points", str(args.points), *step], env=env, check=True)
             with open(out) as f:
                 docs[name] = json.load(f)
             r = docs[name]
             moved = spread(docs["host"], r)
-            print(json.dumps({"case": args.case, "points": args.points, "variant": name, "env": r["machine"]["env"],
-                              "verdict": r["verdict"],
+            print(json.dumps({"case": args.case, "points": args.points, "time_step": r["time_step"], "variant": name,
+                              "env": r["machine"]["env"], "verdict": r["verdict"],
                               "none": r["none"], "pendulum_absorber": r["absorber"], "inertia": r["inertia"],
                               "interval": r["interval"], "reduced_chi2_held_out_calibrated": r["held_out_calibrated"],
                               "reduced_chi2_held_out": r["held_out"], "reduced_chi2_train": r["train"],

@@ -77,7 +77,7 @@ def test_the_benches_ci_points_are_the_strict_tests_campaigns(bench, monkeypatch
         seen.append(argv)
         doc = {"verdict": "no_missing_effect", "none": 1.0, "absorber": 0.0, "inertia": None, "interval": None,
                "held_out_calibrated": 0.3, "held_out": 0.3, "train": 0.3, "noise_level": 1.5, "runs": 1, "wall_s": 1.0,
-               "machine": {"env": {}, "cpu": {"name": "x"}, "numpy_cpu": [], "blas": {}},
+               "machine": {"env": {}, "cpu": {"name": "x"}, "numpy_cpu": [], "blas": {}}, "time_step": 1 / 120000,
                "coef": {"p": [[1.0], [0.0]]}, "sigma": {"p": [1.0]}}
         with open(argv[argv.index("--worker") + 1], "w") as f:
             json.dump(doc, f)
@@ -92,4 +92,34 @@ def test_the_worker_process_diagnoses_the_points_it_is_given(bench, monkeypatch,
     calls = []
     monkeypatch.setattr(bench, "worker", lambda *a: calls.append(a))
     bench.main(["--worker", str(tmp_path / "o.json"), "--case", "ci-absorber", "--workers", "1", "--points", "8"])
-    assert calls == [(str(tmp_path / "o.json"), "ci-absorber", 1, 8)]
+    bench.main(["--worker", str(tmp_path / "o.json"), "--case", "ci-control", "--workers", "1", "--time-step",
+                "1/40000"])
+    assert calls == [(str(tmp_path / "o.json"), "ci-absorber", 1, 8, None),
+                     (str(tmp_path / "o.json"), "ci-control", 1, 9, 2.5e-5)]
+
+
+def test_the_benches_model_step_is_the_strict_tests(bench, monkeypatch):
+    # `--time-step 1/40000` must diagnose with the strict tests' model, the default with the
+    # parameter set's step (the strict tests' up to commit 0005f3a, which the docs quote until then)
+    import argparse
+
+    from dampersim.parameters import at_thesis_segments
+    from tests.discrepancy import test_identification as T
+
+    m = bench.M
+    assert m.CI_TIME_STEP == T.TIME_STEP == T.BASE.solver.time_step
+    assert m.ci_base(m.CI_TIME_STEP) == T.BASE and m.ci_base() == at_thesis_segments()
+    ap = argparse.ArgumentParser()
+    m.add_ci_time_step(ap)
+    assert ap.parse_args([]).time_step is None
+    assert ap.parse_args(["--time-step", "1/40000"]).time_step == 1 / 40000
+    assert ap.parse_args(["--time-step", "2.5e-5"]).time_step == 2.5e-5
+    for bad in ("0", "-1e-5", "1/0", "x", "nan", "inf", "1/"):
+        with pytest.raises(SystemExit):
+            ap.parse_args(["--time-step", bad])
+    # the parent hands the step to the process that synthesises and diagnoses, exactly
+    seen = []
+    monkeypatch.setattr(bench.subprocess, "run", lambda argv, env, check: seen.append(argv) or 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        bench.main(["--time-step", "1/40000", "--variants", "host"])
+    assert float(seen[0][seen[0].index("--time-step") + 1]) == 1 / 40000
