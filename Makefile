@@ -8,8 +8,8 @@ VENV_PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 TEST_CACHE := $(CURDIR)/.test-cache
 PYTEST_ARGS ?=
-# Two processes: the strict identification diagnoses run beside the rest of the suite
-# (tests/conftest.py, APART); PYTEST_XDIST= runs everything in one process.
+# Two processes: the strict identification diagnoses and other modules that only compute run
+# beside the rest of the suite (tests/conftest.py, APART); PYTEST_XDIST= runs everything in one process.
 PYTEST_XDIST ?= -n 2
 
 # numba's cache=True writes here, so it works in a fresh clone / read-only tree.

@@ -36,8 +36,12 @@ import bench_control_misfit as M  # noqa: E402 - the CI campaigns, their model a
 from dampersim.discrepancy import drive, likelihood, synth  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
 from dampersim.errors import AccuracyWarning  # noqa: E402
+from dampersim.parameters import at_thesis_segments  # noqa: E402
 
-REFERENCE = 1 / 120000  # [s] the parameter set's step, the strict tests' up to commit 0005f3a
+#: [s] the parameter set's step (1/120 000 s), the strict tests' up to commit 0005f3a
+REFERENCE = at_thesis_segments().solver.time_step
+#: [s] the steps run by default: half and twice the reference, the reference, the strict tests'
+DEFAULT_STEPS = (REFERENCE / 2, REFERENCE, 2 * REFERENCE, M.CI_TIME_STEP)
 
 
 def changes(runs: dict, sigma: np.ndarray, reference: float = REFERENCE) -> dict:
@@ -49,7 +53,7 @@ def changes(runs: dict, sigma: np.ndarray, reference: float = REFERENCE) -> dict
     out = {}
     for step, y in runs.items():
         d = np.abs(y - ref)
-        z = d / sigma
+        z = d / np.maximum(sigma, 1e-300)
         rel = d / np.abs(ref).max(axis=1, keepdims=True)
         out[step] = {"per_point": z.max(axis=1).tolist(), "largest": float(z.max()),
                      "rms": float(np.sqrt(np.mean(z ** 2))), "largest_relative": float(rel.max())}
@@ -58,8 +62,8 @@ def changes(runs: dict, sigma: np.ndarray, reference: float = REFERENCE) -> dict
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--steps", type=M.time_step, nargs="+", default=[1 / 240000, REFERENCE, 1 / 60000, 1 / 40000],
-                    help="model steps [s], numbers or 1/N (the 1/120000 s reference is always run)")
+    ap.add_argument("--steps", type=M.time_step, nargs="+", default=list(DEFAULT_STEPS),
+                    help="model steps [s], numbers or 1/N (the parameter set's step, the reference, is always run)")
     M.add_ci_points(ap)
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore", AccuracyWarning)  # steps above the checked one are the subject

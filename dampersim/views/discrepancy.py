@@ -297,20 +297,33 @@ def diagnosis_seconds(record_s: float, cores: int | None = None, system=None) ->
     return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * scale * float(record_s) / max(1, cores)
 
 
+def ramp_share(seconds: float, work: float, torsional_work: float) -> float:
+    """The estimate ``seconds`` [s] of :func:`diagnosis_seconds` (2 s of set-up plus the
+    torsional records' share) with that share scaled from ``torsional_work`` to ``work``
+    [step·DOF], the cost model's work of the diagnosis without and with its ramps."""
+    if torsional_work <= 0.0:
+        return seconds
+    return 2.0 + (seconds - 2.0) * max(1.0, work / torsional_work)
+
+
 def diagnosis_admission(summary: dict, started_by_link: bool) -> tuple:
     """The cost rule for diagnosing a campaign (its :func:`campaign_summary`): ``("run",
     text)``, ``("ask", text)`` (estimated above :data:`AUTOSTART_DIAGNOSIS_S` and started by
     a link, not by Run: show the text and the Run button) or ``("refuse", text)`` (above
     :data:`DIAGNOSIS_BUDGET_S`). The estimate grows with the number of points times their
-    duration (the seconds of torsional record), see :func:`diagnosis_seconds`."""
+    duration (the seconds of torsional record), see :func:`diagnosis_seconds`, and with the
+    ramps' share of the cost model's work (:func:`ramp_share`)."""
     from dampersim import costs
     from dampersim.discrepancy.effects import EFFECTS
 
-    est = diagnosis_seconds(summary.get("record_s") or 0.0)
     n_candidates = len(DISCREPANCY_OPTIONS.get("candidates") or EFFECTS)
-    cost = costs.diagnosis_cost(default_parameters(), int(summary.get("torsional") or 0),
-                                float(summary.get("longest_s") or 0.0), n_candidates, int(summary.get("ramps") or 0),
+    n_points, longest = int(summary.get("torsional") or 0), float(summary.get("longest_s") or 0.0)
+    cost = costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates, int(summary.get("ramps") or 0),
                                 float(summary.get("ramp_s") or 0.0))
+    # the measured estimate covers torsional records only; the ramps' runs (and the torsional
+    # re-run after their sizing) add the share the cost model gives them
+    torsional = costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates)
+    est = ramp_share(diagnosis_seconds(summary.get("record_s") or 0.0), cost.work, torsional.work)
     what = (f"{summary.get('torsional', 0)} torsional test points, {float(summary.get('record_s') or 0):.3g} s of "
             f"record: {cost.text()}, about {est:.0f} s on this server")
     try:
@@ -424,6 +437,7 @@ __all__ = [
     "campaign_summary",
     "not_ready_text",
     "diagnosis_seconds",
+    "ramp_share",
     "diagnosis_admission",
     "upload_in_use",
     "campaign_digest",

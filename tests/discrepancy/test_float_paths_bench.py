@@ -123,3 +123,30 @@ def test_the_benches_model_step_is_the_strict_tests(bench, monkeypatch):
     with pytest.raises(ZeroDivisionError):
         bench.main(["--time-step", "1/40000", "--variants", "host"])
     assert float(seen[0][seen[0].index("--time-step") + 1]) == 1 / 40000
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_the_benches_diagnose_with_the_step_they_are_given(bench, monkeypatch, tmp_path):
+    # the campaign is synthesised and diagnosed with the model at --time-step in the worker of
+    # bench_float_paths and in bench_control_misfit, not merely parsed and passed on
+    from dampersim.discrepancy import synth
+
+    seen = []
+
+    def stop(*a, base=None, **k):
+        seen.append(base.solver.time_step)
+        raise _Stop
+
+    monkeypatch.setattr(synth, "synthesize", stop)
+    with pytest.raises(_Stop):
+        bench.worker(str(tmp_path / "o.json"), "ci-control", 1, 8, 1 / 40000)
+    with pytest.raises(_Stop):
+        bench.worker(str(tmp_path / "o.json"), "ci-control", 1, 8, None)
+    m = bench.M
+    monkeypatch.setattr(m, "run", lambda label, *a: seen.append((label, a[7].solver.time_step)) or {})
+    m.main(["--case", "ci-absorber", "--time-step", "1/40000"])
+    assert seen[:2] == [1 / 40000, 1 / 120000]
+    assert seen[2][1] == 1 / 40000 and "time_step=2.5e-05" in seen[2][0]

@@ -32,8 +32,8 @@ POINTS = ["map_900_150", "map_1200_250", "map_1500_150", "map_1800_350", "map_20
 #: a8d5936 it had all nine (bench_control_misfit.CI_POINTS, which docs/discrepancy.md quotes up
 #: to then) and took 987 model runs, the most expensive test of `make test`; on eight it took
 #: 629 to 791 over four floating-point paths with the same verdict, and 654 to 754 at TIME_STEP
-#: (docs/discrepancy.md, Known limits). The synthesiser orders a campaign by speed, then torque, and seeds each point by its
-#: place in that order, so the eight are a new draw, not the nine less one, and the held-out
+#: (docs/discrepancy.md, Known limits). The synthesiser orders a campaign by speed, then torque,
+#: and seeds each point by its place in that order, so the eight are a new draw, not the nine less one, and the held-out
 #: points (every third from the second, CONTROL_HELD_OUT) are other points than the nine's
 #: (ABSORBER_HELD_OUT). The absorber campaign keeps nine: on eight, one path preferred a pair of
 #: effects, and on six the interval barely held the truth (same section)
@@ -59,7 +59,7 @@ WORKERS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else 2
 #: controls on commit f163644"), and this one campaign's value is a draw that moves with how the
 #: machine rounds: its truth runs are chaotic at three of the eight points (their measured orders
 #: move by up to 0.8 times the diagnosis's repeatability term with the kernel's machine code), and
-#: the diagnosis's own path moves with the BLAS kernel (654 to 754 model runs over the four
+#: the diagnosis's own path moves with the float path (654 to 754 model runs over the four
 #: paths). At the library's step the bounds were 0.13 and 0.14 (held out 0.261 to 0.314, training
 #: 0.283 to 0.322), and on the nine points of commit a8d5936 0.07 and 0.2 (held out 0.148 to
 #: 0.321; the held-out bound was 0.3 from commit 0080e51 on, and failed on one machine at 0.148).
@@ -76,8 +76,9 @@ TRAIN_CHI2_LOW = 0.14
 #: not read as an effect. At the nine CI points it moves the model's orders against a 1/120 000 s
 #: run about as much as halving the step does: by at most 1.53 repeatability terms (halving:
 #: 1.75), 0.39 RMS over the cells (0.46), at most 2.1 % of a point's largest order (2.1 %); the
-#: largest changes are at the three points whose runs are chaotic, the six others move by up to
-#: 0.56 terms (halving: 0.36; `python bench/bench_ci_step.py`, commit 0005f3a's library). Over four
+#: largest changes are at map_1500_150 and map_1800_150, where the runs are chaotic; the six
+#: points that are not move by up to 0.56 terms, about 1.6 times what halving the step gives
+#: (0.36; `python bench/bench_ci_step.py`, commit 0005f3a's library). Over four
 #: floating-point paths both tests pass with their bounds, in 765 to 786 model runs (absorber)
 #: and 654 to 754 (control), each a third of the steps of a run at 1/120 000 s (same section).
 #: A step above the checked one warns (AccuracyWarning); here that is the intent

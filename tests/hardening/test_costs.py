@@ -140,6 +140,29 @@ def test_the_diagnosis_time_estimate_scales_its_measurement_by_step_dof():
     assert diagnosis_seconds(12.0, 2, half) == pytest.approx(2.0 + (base - 2.0) * 2, rel=1e-6)
 
 
+def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
+    # the measured estimate covers torsional records; a campaign's ramps add their share of the
+    # cost model's work (their runs and the torsional re-run after sizing), never nothing
+    import re
+
+    from dampersim.discrepancy.effects import EFFECTS
+    from dampersim.parameters import default_parameters
+    from dampersim.views import discrepancy as vd
+
+    monkeypatch.setenv(costs.BUDGET_ENV, "1e15")  # admitted, so the text carries the estimate
+    summary = {"torsional": 12, "record_s": 12.0, "longest_s": 1.0, "ramps": 0, "ramp_s": 0.0}
+    with_ramps = {**summary, "ramps": 2, "ramp_s": 8.0}
+    est = [float(re.search(r"about (\d+) s on this server", vd.diagnosis_admission(x, False)[1]).group(1))
+           for x in (summary, with_ramps)]
+    n = len(vd.DISCREPANCY_OPTIONS.get("candidates") or EFFECTS)
+    ratio = (costs.diagnosis_cost(default_parameters(), 12, 1.0, n, 2, 8.0).work
+             / costs.diagnosis_cost(default_parameters(), 12, 1.0, n).work)
+    assert ratio > 1.1  # two ramps of 8 s add about 12 % to the work: far above the 0.5 s tolerances below
+    assert est[0] == pytest.approx(vd.diagnosis_seconds(12.0), abs=0.5)  # no ramp: the measured estimate
+    assert est[1] == pytest.approx(2.0 + (vd.diagnosis_seconds(12.0) - 2.0) * ratio, abs=0.5)
+    assert vd.ramp_share(50.0, 1.0, 0.0) == 50.0 and vd.ramp_share(50.0, 0.5, 1.0) == 50.0
+
+
 def test_diagnosis_counts_follow_the_workflow():
     """The run counts are copied from dampersim.discrepancy.diagnose (a package above the
     cost model): a change there must be carried over here."""
