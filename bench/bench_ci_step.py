@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_control_misfit as M  # noqa: E402 - the CI campaigns, their model and --points / step parsing
 
-from dampersim.discrepancy import drive, likelihood, synth  # noqa: E402
+from dampersim.discrepancy import drive, synth  # noqa: E402
 from dampersim.discrepancy.campaign import read_campaign  # noqa: E402
 from dampersim.errors import AccuracyWarning  # noqa: E402
 from dampersim.parameters import at_thesis_segments  # noqa: E402
@@ -74,9 +74,7 @@ def main(argv=None):
         synth.synthesize(camp, effects=[], perturb=0.03, seed=M.CI_SEED, points=M.CI_POINTS[:args.points], record=0.8,
                          workers=1, daq=None, base=M.ci_base())
         pts = read_campaign(camp).torsional
-    meas = np.array([likelihood.measured_coefficients(p, drive.ORDERS) for p in pts])
-    half = np.array([likelihood.split_half_sigma(p, drive.ORDERS) for p in pts])
-    sigma = np.sqrt(likelihood.sigma_variances(half, np.zeros(half.shape), np.abs(meas))["repeat"])
+    _, sigma = M.ci_repeat_term(pts)
     runs = {}
     for step in steps:
         model = drive.diagnosis_system(M.ci_base(step))

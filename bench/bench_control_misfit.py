@@ -46,7 +46,9 @@ import tempfile
 import time
 import warnings
 
-from dampersim.discrepancy import fitting, likelihood, synth
+import numpy as np
+
+from dampersim.discrepancy import drive, fitting, likelihood, synth
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.errors import AccuracyWarning
@@ -149,6 +151,16 @@ def ci_base(step: float | None = None):
     """The CI campaigns' diagnosed model: the thesis's 18/8 segments, at ``step`` [s] when given."""
     base = at_thesis_segments()
     return base if step is None else with_updates(base, {"solver.time_step": step})
+
+
+def ci_repeat_term(points):
+    """(complex output orders [N m], repeatability term [N m]) of every point, points x
+    drive.ORDERS: the term as the diagnosis forms it (each cell's split-half sample pooled with
+    its order's median over the points, likelihood.sigma_variances), not the single sample,
+    which can be near zero (shared by bench_float_paths.py and bench_ci_step.py)."""
+    coef = np.array([likelihood.measured_coefficients(p, drive.ORDERS) for p in points])
+    half = np.array([likelihood.split_half_sigma(p, drive.ORDERS) for p in points])
+    return coef, np.sqrt(likelihood.sigma_variances(half, np.zeros(half.shape), np.abs(coef))["repeat"])
 
 
 def _iterations(text: str) -> int:

@@ -72,7 +72,7 @@ def worker(out: str, case: str, workers: int, points: int = len(M.CI_POINTS), st
     and the diagnosis's figures to ``out`` (JSON)."""
     import warnings
 
-    from dampersim.discrepancy import drive, likelihood, synth
+    from dampersim.discrepancy import synth
     from dampersim.discrepancy.campaign import read_campaign
     from dampersim.discrepancy.diagnose import diagnose
     from dampersim.errors import AccuracyWarning
@@ -86,11 +86,7 @@ def worker(out: str, case: str, workers: int, points: int = len(M.CI_POINTS), st
         synth.synthesize(camp, effects=effects, perturb=0.03, seed=M.CI_SEED, points=M.CI_POINTS[:points],
                          record=0.8, workers=workers, daq=M.ci_daq(daq), base=base)
         c = read_campaign(camp)
-        coef = np.array([likelihood.measured_coefficients(p, drive.ORDERS) for p in c.points])
-        half = np.array([likelihood.split_half_sigma(p, drive.ORDERS) for p in c.points])
-        # the repeatability term as the diagnosis forms it (each cell's sample pooled with its
-        # order's median over the points), not the single sample, which can be near zero
-        sig = np.sqrt(likelihood.sigma_variances(half, np.zeros(half.shape), np.abs(coef))["repeat"])
+        coef, sig = M.ci_repeat_term(c.points)
         g = diagnose(c, base, workers=workers, recommend=False, **M.CI_DIAGNOSIS)
     lk = g.likelihood
     fitted = next((e for e in g.effects if e["name"] == "pendulum_absorber"), None)

@@ -63,6 +63,8 @@ DEFAULT_EXAMPLE = "hidden-effect-example"
 #: commit dd443e3, 1676 model runs) with the solver settings of that time,
 #: DIAGNOSIS_MEASURED; other settings scale it by a test point's step·DOF.
 DIAGNOSIS_CORE_S_PER_RECORD_S = 46.0
+#: set-up of a diagnosis in the page's time estimate [s] (reading the campaign, starting workers)
+DIAGNOSIS_SETUP_S = 2.0
 #: solver settings of the DIAGNOSIS_CORE_S_PER_RECORD_S measurement: the thesis's segment
 #: counts (the default then) and the 1/120 000 s step [s]
 DIAGNOSIS_MEASURED = {**THESIS_SEGMENTS, "solver.time_step": 1.0 / 120000.0}
@@ -294,36 +296,41 @@ def diagnosis_seconds(record_s: float, cores: int | None = None, system=None) ->
     measured = with_updates(system, DIAGNOSIS_MEASURED, check=False)
     scale = costs.point_cost(system, 1.0, record_segments=False).work / costs.point_cost(
         measured, 1.0, record_segments=False).work
-    return 2.0 + DIAGNOSIS_CORE_S_PER_RECORD_S * scale * float(record_s) / max(1, cores)
+    return DIAGNOSIS_SETUP_S + DIAGNOSIS_CORE_S_PER_RECORD_S * scale * float(record_s) / max(1, cores)
 
 
-def ramp_share(seconds: float, work: float, torsional_work: float) -> float:
-    """The estimate ``seconds`` [s] of :func:`diagnosis_seconds` (2 s of set-up plus the
-    torsional records' share) with that share scaled from ``torsional_work`` to ``work``
-    [step·DOF], the cost model's work of the diagnosis without and with its ramps."""
+def ramp_share(seconds: float, ramp_work: float, torsional_work: float) -> float:
+    """The estimate ``seconds`` [s] of :func:`diagnosis_seconds` (DIAGNOSIS_SETUP_S plus the
+    torsional records' share) with the ramps' runs added: the records' share grows by
+    ``ramp_work`` / ``torsional_work``, the cost model's work [step·DOF] that the ramps add and
+    its work for the torsional records alone."""
     if torsional_work <= 0.0:
         return seconds
-    return 2.0 + (seconds - 2.0) * max(1.0, work / torsional_work)
+    return seconds + (seconds - DIAGNOSIS_SETUP_S) * max(0.0, ramp_work) / torsional_work
 
 
 def diagnosis_admission(summary: dict, started_by_link: bool) -> tuple:
     """The cost rule for diagnosing a campaign (its :func:`campaign_summary`): ``("run",
-    text)``, ``("ask", text)`` (estimated above :data:`AUTOSTART_DIAGNOSIS_S` and started by
-    a link, not by Run: show the text and the Run button) or ``("refuse", text)`` (above
-    :data:`DIAGNOSIS_BUDGET_S`). The estimate grows with the number of points times their
-    duration (the seconds of torsional record), see :func:`diagnosis_seconds`, and with the
-    ramps' share of the cost model's work (:func:`ramp_share`)."""
+    text)``, ``("ask", text)`` (the cost model's work, :func:`dampersim.costs.diagnosis_cost`,
+    above the auto-start budget and started by a link, not by Run: show the text and the Run
+    button) or ``("refuse", text)`` (above the server budget; :func:`dampersim.costs.admit`).
+    The text's time estimate grows with the seconds of torsional record
+    (:func:`diagnosis_seconds`) and with the ramps' share of the cost model's work
+    (:func:`ramp_share`); it informs, the budgets decide."""
     from dampersim import costs
     from dampersim.discrepancy.effects import EFFECTS
 
     n_candidates = len(DISCREPANCY_OPTIONS.get("candidates") or EFFECTS)
     n_points, longest = int(summary.get("torsional") or 0), float(summary.get("longest_s") or 0.0)
+    record_s = float(summary.get("record_s") or 0.0)
     cost = costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates, int(summary.get("ramps") or 0),
                                 float(summary.get("ramp_s") or 0.0))
-    # the measured estimate covers torsional records only; the ramps' runs (and the torsional
-    # re-run after their sizing) add the share the cost model gives them
-    torsional = costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates)
-    est = ramp_share(diagnosis_seconds(summary.get("record_s") or 0.0), cost.work, torsional.work)
+    # the measured estimate covers torsional records only, by their total length; the ramps'
+    # runs (and the torsional re-run after their sizing) add what the cost model gives them,
+    # against its torsional work at the records' mean length (the bound above uses the longest)
+    ramp_work = cost.work - costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates).work
+    mean = costs.diagnosis_cost(default_parameters(), n_points, record_s / max(1, n_points), n_candidates)
+    est = ramp_share(diagnosis_seconds(record_s), ramp_work, mean.work)
     what = (f"{summary.get('torsional', 0)} torsional test points, {float(summary.get('record_s') or 0):.3g} s of "
             f"record: {cost.text()}, about {est:.0f} s on this server")
     try:

@@ -14,17 +14,22 @@ def bench():
 
 
 def test_a_change_is_read_against_each_cell_s_own_term(bench):
-    ref = np.array([[10 + 0j, 2j], [4 + 0j, 1 + 0j]])
-    coarse = ref + np.array([[0.3 + 0.4j, 0], [0, -0.2]])  # |0.5| at (0, 0), 0.2 at (1, 1)
-    sigma = np.array([[0.25, 1.0], [1.0, 0.1]])
+    # rows are points, columns orders: each point's figure is its own largest over its orders
+    # (not over the points), and the relative change is against its own largest order
+    ref = np.array([[10 + 0j, 2j, 1 + 0j], [4 + 0j, 1 + 0j, 0.5j]])
+    coarse = ref + np.array([[0.3 + 0.4j, 0.1, 0], [0, -0.2, 0.05]])  # |0.5|, 0.1 | 0.2, 0.05
+    sigma = np.array([[0.25, 1.0, 1.0], [1.0, 0.05, 1.0]])
     out = bench.changes({1e-5: ref, 3e-5: coarse}, sigma, reference=1e-5)
     assert out[1e-5] == {"per_point": [0.0, 0.0], "largest": 0.0, "rms": 0.0, "largest_relative": 0.0}
     c = out[3e-5]
-    assert c["per_point"] == pytest.approx([2.0, 2.0])  # 0.5 / 0.25 and 0.2 / 0.1
-    assert c["largest"] == pytest.approx(2.0)
-    assert c["rms"] == pytest.approx(np.sqrt((4.0 + 4.0) / 4))
-    # relative to the point's largest order: 0.5 of 10 and 0.2 of 4
-    assert c["largest_relative"] == pytest.approx(0.05)
+    assert c["per_point"] == pytest.approx([2.0, 4.0])  # 0.5 / 0.25 and 0.2 / 0.05
+    assert c["largest"] == pytest.approx(4.0)
+    assert c["rms"] == pytest.approx(np.sqrt((4.0 + 0.01 + 16.0 + 0.0025) / 6))
+    # 0.5 of point 1's 10 N m is 5 %; 0.2 of point 2's 4 N m is 5 % too, but of the campaign's
+    # largest order (10 N m) only 2 %: make point 2's change the larger relative one
+    coarse[1, 1] = 1 - 0.4
+    c = bench.changes({1e-5: ref, 3e-5: coarse}, sigma, reference=1e-5)[3e-5]
+    assert c["largest_relative"] == pytest.approx(0.1)  # 0.4 of 4 N m, not 0.4 of 10 N m
 
 
 def test_the_reference_is_the_parameter_set_s_step_and_the_default_steps_hold_the_strict_tests(bench):

@@ -146,7 +146,16 @@ def test_the_benches_diagnose_with_the_step_they_are_given(bench, monkeypatch, t
     with pytest.raises(_Stop):
         bench.worker(str(tmp_path / "o.json"), "ci-control", 1, 8, None)
     m = bench.M
-    monkeypatch.setattr(m, "run", lambda label, *a: seen.append((label, a[7].solver.time_step)) or {})
+    import inspect
+
+    signature = inspect.signature(m.run)
+
+    def run(*a):
+        args = signature.bind(*a).arguments
+        seen.append((args["label"], args["base"].solver.time_step))
+        return {}
+
+    monkeypatch.setattr(m, "run", run)
     m.main(["--case", "ci-absorber", "--time-step", "1/40000"])
     assert seen[:2] == [1 / 40000, 1 / 120000]
     assert seen[2][1] == 1 / 40000 and "time_step=2.5e-05" in seen[2][0]

@@ -73,12 +73,13 @@ TRAIN_CHI2_LOW = 0.14
 #: the diagnosed model's time step [s]: three times the library's 1/120 000 s. The truth is
 #: synthesised at 5e-6 s whatever the model's step (synth.truth_system), so the campaigns are the
 #: same data as at 1/120 000 s; what the coarser step adds is model error, which the method must
-#: not read as an effect. At the nine CI points it moves the model's orders against a 1/120 000 s
-#: run about as much as halving the step does: by at most 1.53 repeatability terms (halving:
-#: 1.75), 0.39 RMS over the cells (0.46), at most 2.1 % of a point's largest order (2.1 %); the
-#: largest changes are at map_1500_150 and map_1800_150, where the runs are chaotic; the six
-#: points that are not move by up to 0.56 terms, about 1.6 times what halving the step gives
-#: (0.36; `python bench/bench_ci_step.py`, commit 0005f3a's library). Over four
+#: not read as an effect. Over the nine CI points it moves the model's orders against a
+#: 1/120 000 s run by at most 1.53 repeatability terms (halving the step: 1.75), 0.39 RMS over the
+#: cells (0.46), at most 2.1 % of a point's largest order (2.1 %); those largest changes are at
+#: map_1500_150 and map_1800_150, two of the three points (with map_1200_250) whose runs are
+#: chaotic and move with any change of the arithmetic. At the six other points it moves them
+#: by up to 0.56 terms, about 1.6 times what halving the step gives (0.36; `python
+#: bench/bench_ci_step.py`, commit 0005f3a's library). Over four
 #: floating-point paths both tests pass with their bounds, in 765 to 786 model runs (absorber)
 #: and 654 to 754 (control), each a third of the steps of a run at 1/120 000 s (same section).
 #: A step above the checked one warns (AccuracyWarning); here that is the intent

@@ -142,7 +142,8 @@ def test_the_diagnosis_time_estimate_scales_its_measurement_by_step_dof():
 
 def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
     # the measured estimate covers torsional records; a campaign's ramps add their share of the
-    # cost model's work (their runs and the torsional re-run after sizing), never nothing
+    # cost model's work (their runs and the torsional re-run after sizing), never nothing, and
+    # that share is read against the records' mean length, as the estimate reads their total
     import re
 
     from dampersim.discrepancy.effects import EFFECTS
@@ -150,17 +151,26 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
     from dampersim.views import discrepancy as vd
 
     monkeypatch.setenv(costs.BUDGET_ENV, "1e15")  # admitted, so the text carries the estimate
-    summary = {"torsional": 12, "record_s": 12.0, "longest_s": 1.0, "ramps": 0, "ramp_s": 0.0}
-    with_ramps = {**summary, "ramps": 2, "ramp_s": 8.0}
-    est = [float(re.search(r"about (\d+) s on this server", vd.diagnosis_admission(x, False)[1]).group(1))
-           for x in (summary, with_ramps)]
+
+    def shown(summary):
+        return float(re.search(r"about (\d+) s on this server", vd.diagnosis_admission(summary, False)[1]).group(1))
+
     n = len(vd.DISCREPANCY_OPTIONS.get("candidates") or EFFECTS)
-    ratio = (costs.diagnosis_cost(default_parameters(), 12, 1.0, n, 2, 8.0).work
-             / costs.diagnosis_cost(default_parameters(), 12, 1.0, n).work)
-    assert ratio > 1.1  # two ramps of 8 s add about 12 % to the work: far above the 0.5 s tolerances below
-    assert est[0] == pytest.approx(vd.diagnosis_seconds(12.0), abs=0.5)  # no ramp: the measured estimate
-    assert est[1] == pytest.approx(2.0 + (vd.diagnosis_seconds(12.0) - 2.0) * ratio, abs=0.5)
-    assert vd.ramp_share(50.0, 1.0, 0.0) == 50.0 and vd.ramp_share(50.0, 0.5, 1.0) == 50.0
+    system = default_parameters()
+    equal = {"torsional": 12, "record_s": 12.0, "longest_s": 1.0, "ramps": 0, "ramp_s": 0.0}
+    uneven = {**equal, "record_s": 21.0, "longest_s": 10.0}  # 11 points of 1 s and one of 10 s
+    for summary, mean in ((equal, 1.0), (uneven, 1.75)):
+        seconds = vd.diagnosis_seconds(summary["record_s"])
+        assert shown(summary) == pytest.approx(seconds, abs=0.5)  # no ramp: the measured estimate
+        longest = summary["longest_s"]
+        ramps = (costs.diagnosis_cost(system, 12, longest, n, 2, 8.0).work
+                 - costs.diagnosis_cost(system, 12, longest, n).work)
+        share = ramps / costs.diagnosis_cost(system, 12, mean, n).work
+        assert share > 0.1  # two ramps of 8 s: far above the 0.5 s tolerance below
+        with_ramps = shown({**summary, "ramps": 2, "ramp_s": 8.0})
+        assert with_ramps == pytest.approx(seconds + (seconds - vd.DIAGNOSIS_SETUP_S) * share, abs=0.5)
+    assert vd.ramp_share(50.0, 1.0, 0.0) == 50.0 and vd.ramp_share(50.0, -1.0, 1.0) == 50.0
+    assert vd.ramp_share(50.0, 1.0, 4.0) == pytest.approx(50.0 + 48.0 / 4)
 
 
 def test_diagnosis_counts_follow_the_workflow():
