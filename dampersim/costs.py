@@ -26,9 +26,13 @@ time estimate errs long. The default budgets follow from it: :data:`DEFAULT_AUTO
 Maps page's 80 points at 2.15e9 with the default 48/16 segments, starts by itself) and
 :data:`DEFAULT_LIMIT` 6e10 step·DOF (about 20 min of one core: the bundled example
 campaign's diagnosis, bounded at 5.95e10 by :func:`diagnosis_cost`, is admitted, 1 % below it;
-the limit applies to every kind of request). The bound is work, not time: that diagnosis
-took 820 s on 2 idle cores for 1792 of its 2763 bounded runs (commit 81b62b5), so its runs
-went at about half the rate above. Both are server settings, read from the
+the limit applies to every kind of request). The bound is work, not time, and the rate
+is an older measurement: the same command now gives 47 ns per
+step·DOF on the same machine (2.1e7 per second; docs/model.md §13 says why the code is not
+the cause), and that diagnosis took 820 s on 2 idle cores for 1792 of its 2763 bounded runs
+of about 2.2e7 step·DOF each (commit 81b62b5), about 2.4e7 step·DOF per core second. So
+every time this module derives from work reads about 2.4 times short on that machine; the
+budgets, in step·DOF, are unaffected. Both are server settings, read from the
 environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
 step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes (default 1 GiB).
 
