@@ -324,17 +324,18 @@ def diagnosis_admission(summary: dict, started_by_link: bool) -> tuple:
     from dampersim import costs
     from dampersim.discrepancy.effects import EFFECTS
 
+    system = default_parameters()
     n_candidates = len(DISCREPANCY_OPTIONS.get("candidates") or EFFECTS)
     n_points, longest = int(summary.get("torsional") or 0), float(summary.get("longest_s") or 0.0)
     record_s = float(summary.get("record_s") or 0.0)
-    cost = costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates, int(summary.get("ramps") or 0),
+    cost = costs.diagnosis_cost(system, n_points, longest, n_candidates, int(summary.get("ramps") or 0),
                                 float(summary.get("ramp_s") or 0.0))
     # the measured estimate covers torsional records only, by their total length; the ramps'
     # runs (and the torsional re-run after their sizing) add what the cost model gives them,
     # against its torsional work at the records' mean length (the bound above uses the longest)
-    ramp_work = cost.work - costs.diagnosis_cost(default_parameters(), n_points, longest, n_candidates).work
-    mean = costs.diagnosis_cost(default_parameters(), n_points, record_s / max(1, n_points), n_candidates)
-    est = ramp_share(diagnosis_seconds(record_s), ramp_work, mean.work)
+    ramp_work = cost.work - costs.diagnosis_cost(system, n_points, longest, n_candidates).work
+    mean = costs.diagnosis_cost(system, n_points, record_s / max(1, n_points), n_candidates)
+    est = ramp_share(diagnosis_seconds(record_s, system=system), ramp_work, mean.work)
     what = (f"{summary.get('torsional', 0)} torsional test points, {float(summary.get('record_s') or 0):.3g} s of "
             f"record: {cost.text()}, about {est:.0f} s on this server")
     try:
