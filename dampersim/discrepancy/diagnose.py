@@ -298,6 +298,20 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["effects"] = [name]
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
+        lead = max((n for n in shortlisted if n in models), key=lambda n: models[n]["log_z"], default=None)
+        if lead is not None and lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]) > \
+                noise_level(2 * len(train) * len(drive.ORDERS)):
+            # the leading effect leaves the training misfit above the noise: the calibration without
+            # it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md, Naming, 3b)
+            report(0.76, f"name: re-calibrating with {lead}")
+            refit = namer.refit(lead, models[lead])
+            if refit is not None and refit["cost"] < models[lead]["cost"]:
+                refit = namer.fit_shapes(lead, refit)
+                refit["effects"], refit["columns"] = [lead], [refit["column"], *refit.get("shape_columns", [])]
+                first_fit = models[lead]
+                finish(lead, refit, [lead])
+                if refit["yh"] is None:  # kept only where it runs at every held-out point
+                    models[lead] = first_fit
         if namer.recalibrate(models, held_pts, bias_w):  # "none" at the best factors a candidate's fit found
             cal, x, y_tr = namer.starts["calibrated"]
             y_cal[train], y_cal[held] = y_tr, models["none"]["yh"]
