@@ -29,10 +29,10 @@ campaign's diagnosis, bounded at 6.55e10 by :func:`diagnosis_cost`, is admitted,
 the limit applies to every kind of request). The bound is work, not time, and the rate
 is an older measurement: the same command now gives 47 ns per
 step·DOF on the same machine (2.1e7 per second; docs/model.md §13 says why the code is not
-the cause), and that diagnosis took 925 s on 2 idle cores for 2024 of its 3039 bounded runs
+the cause), and that diagnosis took 955 s on 2 idle cores for 2024 of its 3039 bounded runs
 of about 2.2e7 step·DOF each (with the leading effect's re-calibration; 820 s for 1792 runs
-before it, commit 81b62b5), about 2.4e7 step·DOF per core second. So
-every time this module derives from work reads about 2.4 times short on that machine; the
+before it, commit 81b62b5, 2.4e7), about 2.3e7 step·DOF per core second. So every
+time this module derives from work reads 2.1 to 2.4 times short on that machine; the
 budgets, in step·DOF, are unaffected. Both are server settings, read from the
 environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
 step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes (default 1 GiB).
@@ -298,7 +298,9 @@ DIAGNOSIS_PAIR_RUNS = 5 + 8 + 1 + 1  # a pair's second magnitude: grid + refinem
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration (REFIT_ITERATIONS) the six factors' and the magnitude's
 #: sensitivities and the step lengths tried, then its shape parameters
-DIAGNOSIS_REFIT_RUNS = 1 + 3 * (DIAGNOSIS_FACTORS + 1 + 3) + (2 + 1)
+DIAGNOSIS_REFIT_ITERATIONS = 3
+DIAGNOSIS_REFIT_RUNS = (1 + DIAGNOSIS_REFIT_ITERATIONS * (DIAGNOSIS_FACTORS + 1 + DIAGNOSIS_STEP_TRIALS)
+                        + DIAGNOSIS_SHAPE_RUNS)
 DIAGNOSIS_DETECT_RUNS = 3  # magnitudes per candidate for its detectability (weak, typical, strong)
 DIAGNOSIS_DESIGN_RUNS = 5 * 3 * 5  # next-test design: candidate points x models (design.DESIGN_*)
 DIAGNOSIS_DESIGN_S = 0.6 + 1.0  # simulated length of one design run [s] (start-up + design.DESIGN_RECORD)

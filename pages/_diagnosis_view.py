@@ -63,7 +63,9 @@ def ranking_table(doc: dict):
                       "(calibration, channel gain and delay, the effect's magnitude and shape) times its prior. "
                       "Candidates without a held-out figure were screened (linearised) but not fitted. Each candidate "
                       "is fitted from the calibrated or the estimated parameters, whichever fits better: from the "
-                      "estimated ones when the calibration had imitated the effect.", className="hint")
+                      "estimated ones when the calibration had imitated the effect. \"refit\": the leading effect "
+                      "fitted again together with the calibration factors, from the estimated ones, because its "
+                      "first fit left the training points above the noise level.", className="hint")
         return [W.table(cols, rows, cid="discrepancy-ranking-table", highlight=lambda r: r["named"]), note]
     for r in ranked:  # a document from before the likelihood
         rows.append({

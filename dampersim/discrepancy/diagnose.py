@@ -299,19 +299,21 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
         lead = max((n for n in shortlisted if n in models), key=lambda n: models[n]["log_z"], default=None)
+        recalibrated = None  # {effect, adopted} when the leading effect was fitted again with the calibration
         if lead is not None and lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]) > \
                 noise_level(2 * len(train) * len(drive.ORDERS)):
             # the leading effect leaves the training misfit above the noise: the calibration without
             # it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md, Naming, 3b)
             report(0.76, f"name: re-calibrating with {lead}")
-            refit = namer.refit(lead, models[lead])
-            if refit is not None and refit["cost"] < models[lead]["cost"]:
-                refit = namer.fit_shapes(lead, refit)
+            first_fit, first_failures = models[lead], dict(failures.get(lead, {}))
+            refit = namer.fit_shapes(lead, namer.refit(lead, first_fit))
+            recalibrated = {"effect": lead, "adopted": False}
+            if refit is not None and refit["cost"] < first_fit["cost"]:
                 refit["effects"], refit["columns"] = [lead], [refit["column"], *refit.get("shape_columns", [])]
-                first_fit = models[lead]
                 finish(lead, refit, [lead])
-                if refit["yh"] is None:  # kept only where it runs at every held-out point
-                    models[lead] = first_fit
+                recalibrated["adopted"] = refit["yh"] is not None
+            if not recalibrated["adopted"]:  # kept only where it fits better and runs at every held-out point
+                models[lead], failures[lead] = first_fit, first_failures
         if namer.recalibrate(models, held_pts, bias_w):  # "none" at the best factors a candidate's fit found
             cal, x, y_tr = namer.starts["calibrated"]
             y_cal[train], y_cal[held] = y_tr, models["none"]["yh"]
@@ -339,8 +341,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     (math.log(v / f1["shape_start"][q]) / selection.SHAPE_PRIOR_SD) ** 2
                     for q, v in f1.get("shapes", {}).items())
                 label = "+".join(sorted([best_single, second]))
-                fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label)
+                fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
+                                jac=namer.jac_of(f1))
                 if fit is not None:
+                    fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]
                     fit["columns"] = [f1["column"], fit["column"]]
                     fit["m_first"] = f1["m"]
@@ -391,7 +395,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
             typ = screen[name]["y"] if screen[name]["start"] == "calibrated" and "refactored" not in models["none"] else None
-            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain, eta)
+            detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain, eta,
+                                               namer.jac_of(models["none"]))
         # 4) augment
         final = models[top]
         y_aug = y_cal.copy()
@@ -454,6 +459,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
                     "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
+                    "recalibrated": recalibrated,
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_noise_scale": ramp_lik.scales.get(top) if ramp_lik is not None else None,

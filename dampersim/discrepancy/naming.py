@@ -141,18 +141,21 @@ class Namer:
                 fits += [f for f in [self.fit(name, other)] if f is not None]
         return sorted(fits, key=lambda f: f["cost"])
 
-    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None):
+    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None):
         """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple
         (system, x, y) to fit on top of another effect): a five-value grid, a bounded search
         in log magnitude, a linearised re-calibration at every trial, then real runs against
         the re-calibrated, the start's and the estimated factors. Returns a dict (cost, m, x,
         y, system, column: the standardised derivative w.r.t. log m) or None when every
         run failed. extra_prior: prior terms of parameters fitted before (a pair's first
-        effect); label: the model failed runs are recorded against (default ``name``)."""
+        effect); label: the model failed runs are recorded against (default ``name``); jac: the
+        factors' Jacobian of the linearised re-calibration (default the calibration's; a pair
+        on top of a re-calibrated effect passes that effect's, :meth:`jac_of`)."""
         from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
 
         e = info(name)
         label = label or name
+        jc = self.jac if jac is None else jac
         s0, x0, _ = self.starts[start] if isinstance(start, str) else start
         tried = {}
 
@@ -171,8 +174,8 @@ class Namer:
                 exact = loss0 + float(np.sum(x0 ** 2)) / PRIOR_LOG_SD ** 2 + extra
                 with self.lik.using(nu):
                     r = self.lik.mvec(self.train) - self.lik.vec(ym, self.train)
-                dx = _lstsq_bounded(self.jac, r, x0)
-                rr = r - self.jac @ dx
+                dx = _lstsq_bounded(jc, r, x0)
+                rr = r - jc @ dx
                 lin = (float(rr @ rr) + self.lik.nuisance_prior(nu) + float(np.sum((x0 + dx) ** 2)) / PRIOR_LOG_SD ** 2
                        + extra)
                 tried[m] = (exact, x0) if exact <= lin else (lin, x0 + dx)
@@ -220,10 +223,11 @@ class Namer:
         the fitted model whose factors it took) and the "calibrated" start; True when it moved.
         Runs: the training points per distinct trial factors, the held-out points once.
 
-        The moved model's evidence keeps the calibration's Jacobian, robust weights and
-        linearisation nuisance of where the Gauss-Newton stopped, as every effect's evidence
-        does (in control/none/1 the factors move by less than 1 %; near a resonance the
-        Jacobian at the new factors could differ). The move is judged on the training points
+        The moved model's evidence keeps the robust weights and linearisation nuisance of where
+        the Gauss-Newton stopped, as every effect's evidence does, and the Jacobian of the fit
+        whose factors it takes (:meth:`jac_of`: the calibration's, unless that fit was
+        re-calibrated by :meth:`refit`; in control/none/1 the factors move by less than 1 %;
+        near a resonance the Jacobian at the new factors could differ). The move is judged on the training points
         alone: the held-out misfit of "none" may rise, and so may the baseline of the
         held-out penalty."""
         none = models["none"]
@@ -238,23 +242,24 @@ class Namer:
             y = drive.coefficients_of(self.runner, system, self.points, errs)
             c = math.inf if errs else self.cost(y, xc)
             if c < (none["cost"] if best is None else best[0]):
-                best = (c, xc, y, label, system)
+                best = (c, xc, y, label, system, fit.get("jac"))
         if best is None:
             return False
-        c, xc, y, label, system = best
+        c, xc, y, label, system, jac = best
         errs = {}
         yh = drive.coefficients_of(self.runner, system, held_pts, errs)
         if errs:  # the calibration-only model must run everywhere the old one did
             return False
         none.update(cost=c, x=xc, y=y, system=system, yh=yh, nuisance=self.lik.profile(y, self.train)[1],
-                    refactored=label)
+                    refactored=label, jac=jac)
         none["log_z"], none["cov"] = self.evidence(none, [], bias)
         self.starts["calibrated"] = (system, xc, y)
         return True
 
     def jac_of(self, fit) -> np.ndarray:
-        """The calibration factors' standardised Jacobian a fitted model is read with: its own
-        when :meth:`refit` took it at the model's factors, else the calibration's."""
+        """The calibration factors' standardised Jacobian a fitted model is read with: the one
+        :meth:`refit` took near the model's factors (a pair on top of it, or "none" moved to its
+        factors, carries it on), else the calibration's."""
         return fit["jac"] if fit.get("jac") is not None else self.jac
 
     def refit(self, name, fit):
@@ -262,14 +267,17 @@ class Namer:
         factors and the log magnitude together from the estimated factors (shape parameters at
         the library's values; :meth:`fit_shapes` may move them after), with sensitivities taken
         afresh at every iteration (CAL_DERIVATIVE_STEPS[0] for a factor, FD_STEP for the
-        magnitude) and at most REFIT_ITERATIONS iterations.
+        magnitude) and at most REFIT_ITERATIONS iterations; a parameter whose derivative run
+        fails is held where it is for that iteration.
 
         For the effect the calibration without it has taken up: :meth:`fit` re-calibrates
         through the Jacobian taken where that calibration stopped, and when the calibration
         has moved far to imitate the effect (factors of 1.5 to 2 for a 5 % perturbation) that
-        linearisation cannot bring the factors back. Returns a fit like :meth:`fit`'s, with
-        ``jac`` the factors' Jacobian of its last iteration (taken before that iteration's step
-        when the step was accepted), or None when its first run fails."""
+        linearisation does not bring the factors back. Returns a fit like :meth:`fit`'s, with
+        ``jac`` the factors' Jacobian of its last iteration and ``column`` the magnitude's:
+        taken at the start of that iteration, so one step behind the returned factors when its
+        step was accepted (one more set would cost seven runs per training point). None when
+        its first run fails."""
         e = info(name)
         h = CAL_DERIVATIVE_STEPS[0]
         n = self.jac.shape[1]
@@ -289,20 +297,27 @@ class Namer:
         jac = None
         for _ in range(REFIT_ITERATIONS):
             nu = self.lik.profile(y, self.train)[1]
-            m_fd, step = fd_magnitude(name, m)
+            m_fd, fd = fd_magnitude(name, m)
             trials = [system_at(x + h * k, m) for k in np.eye(n)] + [system_at(x, m_fd)]
             errs = [{} for _ in trials]
             ys = drive.coefficients_of_sets(self.runner, trials, self.points, errs)
+            for err in errs:
+                for j, msg in err.items():
+                    self.failures.setdefault(name, {}).setdefault(self.points[j].id, msg)
+            ok = np.array([not err for err in errs])
             with self.lik.using(nu):  # a failed derivative run gives no direction (0), never a fit
-                jac = np.column_stack([np.zeros(len(self.lik.mvec(self.train))) if err else
-                                       self.w((yk - y) / d) for yk, err, d in zip(ys, errs, [h] * n + [step])])
+                jac = np.column_stack([self.w((yk - y) / dk) if good else np.zeros(len(self.lik.mvec(self.train)))
+                                       for yk, good, dk in zip(ys, ok, [h] * n + [fd])])
                 r = self.lik.mvec(self.train) - self.lik.vec(y, self.train)
             centre = np.concatenate([-x, [math.log(e.magnitudes[1] / m)]])
-            d = np.linalg.solve(jac.T @ jac + np.diag(prec), jac.T @ r + prec * centre)
+            step = np.zeros(n + 1)  # the parameters without a direction stay: no pull to the prior alone
+            a = jac[:, ok]
+            if ok.any():
+                step[ok] = np.linalg.solve(a.T @ a + np.diag(prec[ok]), a.T @ r + prec[ok] * centre[ok])
             moved = False
             for frac in CAL_STEP_FRACTIONS:
-                xn = np.clip(x + frac * d[:n], -CAL_BOUND, CAL_BOUND)
-                mn = clip_magnitude(name, m * math.exp(frac * float(d[n])))
+                xn = np.clip(x + frac * step[:n], -CAL_BOUND, CAL_BOUND)
+                mn = clip_magnitude(name, m * math.exp(frac * float(step[n])))
                 yn, failed = self.runs(system_at(xn, mn), name)
                 cn = math.inf if failed else cost(yn, xn, mn)
                 if cn < c:
@@ -405,7 +420,8 @@ class Namer:
             return self.lik.loss(y, self.train) - self.lik.nuisance_prior()
 
     # --- detectability --------------------------------------------------------------------
-    def detectability(self, name, y_cal, nuisance, y_typ, priors, ramp_gain=None, eta: float = 1.0) -> float | None:
+    def detectability(self, name, y_cal, nuisance, y_typ, priors, ramp_gain=None, eta: float = 1.0,
+                      jac=None) -> float | None:
         """The magnitude at the detection threshold of effect ``name`` for this campaign:
         where the chi^2 improvement it would bring, after the calibration and the channels'
         gain and delay have absorbed what they can (its signature projected off those
@@ -414,12 +430,13 @@ class Namer:
         (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): the
         chi^2 the ramps would add at magnitude m (None: torsional points only); eta: the
         likelihood's learning rate, which scales the torsional chi^2 (a threshold read against
-        the misfit the calibrated model really leaves)."""
+        the misfit the calibrated model really leaves); jac: the calibrated model's factor
+        Jacobian (default the calibration's; :meth:`jac_of` of "none")."""
         e = info(name)
         meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
         cal = self.starts["calibrated"][0]
         nu_cols, nu_prec = self._nuisance(y_cal, nuisance)
-        absorb = np.column_stack([self.jac, nu_cols])
+        absorb = np.column_stack([self.jac if jac is None else jac, nu_cols])
         a = eta * (absorb.T @ absorb) + np.diag(np.concatenate([self.prec_cal, nu_prec]))
         mags, gains = [], []
         for m in e.magnitudes:

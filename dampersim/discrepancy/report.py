@@ -70,7 +70,8 @@ def ranking_rows(doc: dict) -> list:
     """Ranking of a diagnosis document as table rows: effect (or pair "a+b"), fitted
     parameters (with units), posterior probability, log evidence, held-out gap [N m] and
     reduced chi^2 on the held-out points, and the starting point the effect was fitted from
-    ("calibrated" or "estimated" parameters). Documents from before the likelihood carry
+    ("calibrated" or "estimated" parameters; "refit": fitted again together with the
+    calibration; "pair": on top of another effect). Documents from before the likelihood carry
     improvement, penalty, score, training and screen fits instead (None in newer ones).
 
     A candidate left unranked because its model runs failed has ``excluded`` (the

@@ -4,7 +4,7 @@ functions and through Dash's HTTP endpoint (no browser).
 
 The diagnosis runs once, in a module fixture, on a tiny synthetic campaign written by the
 library (3 torsional points of 0.6 s) with a reduced candidate list: the full diagnosis of
-the bundled example takes about 35 s, too long for this suite.
+the bundled example takes about 15 minutes on 2 cores, too long for this suite.
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ def test_layout_renders_with_and_without_a_query():
     dd = find(lay, "discrepancy-campaign")
     assert dd.value == EXAMPLE and {"label": f"example: {EXAMPLE}", "value": EXAMPLE} in dd.options
     assert "could not be used" not in as_json(D.layout(foo="bar", speed="1"))  # unknown keys: ignored, no notice
-    assert find(D.layout(), "discrepancy-autorun").data is False  # a bare visit never starts a 35 s diagnosis
+    assert find(D.layout(), "discrepancy-autorun").data is False  # a bare visit never starts a 15-minute diagnosis
 
 
 def test_good_link_selects_the_example_and_starts_it():
