@@ -295,10 +295,10 @@ DIAGNOSIS_FIT_RUNS = 5 + 8 + 3 + 1  # magnitude grid + bounded refinement + veri
 DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
 DIAGNOSIS_PAIR_RUNS = 5 + 8 + 1 + 1  # a pair's second magnitude: grid + refinement + verification + derivative
+DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
-#: its start, then per iteration (REFIT_ITERATIONS) the six factors' and the magnitude's
-#: sensitivities and the step lengths tried, then its shape parameters
-DIAGNOSIS_REFIT_ITERATIONS = 3
+#: its start, then per iteration the six factors' and the magnitude's sensitivities and the step
+#: lengths tried, then its shape parameters
 DIAGNOSIS_REFIT_RUNS = (1 + DIAGNOSIS_REFIT_ITERATIONS * (DIAGNOSIS_FACTORS + 1 + DIAGNOSIS_STEP_TRIALS)
                         + DIAGNOSIS_SHAPE_RUNS)
 DIAGNOSIS_DETECT_RUNS = 3  # magnitudes per candidate for its detectability (weak, typical, strong)

@@ -47,7 +47,8 @@ REFIT_ITERATIONS = 3
 class Namer:
     """The naming step's state: runner, likelihood, training rows and points, the
     calibration's Jacobian (standardised, at the factors where the calibration's
-    Gauss-Newton stopped; it stays there when :meth:`recalibrate` moves "none") and the starts."""
+    Gauss-Newton stopped; it stays there when :meth:`recalibrate` moves "none", which then
+    reads :meth:`jac_of` the fit whose factors it took) and the starts."""
 
     def __init__(self, runner, lik, train, points, jac, starts, failures):
         self.runner, self.lik, self.train, self.points = runner, lik, train, points
@@ -276,8 +277,8 @@ class Namer:
         linearisation does not bring the factors back. Returns a fit like :meth:`fit`'s, with
         ``jac`` the factors' Jacobian of its last iteration and ``column`` the magnitude's:
         taken at the start of that iteration, so one step behind the returned factors when its
-        step was accepted (one more set would cost seven runs per training point). None when
-        its first run fails."""
+        step was accepted (one more set would cost seven runs per training point), and two when
+        :meth:`fit_shapes` then moves them. None when its first run fails."""
         e = info(name)
         h = CAL_DERIVATIVE_STEPS[0]
         n = self.jac.shape[1]
@@ -314,6 +315,8 @@ class Namer:
             a = jac[:, ok]
             if ok.any():
                 step[ok] = np.linalg.solve(a.T @ a + np.diag(prec[ok]), a.T @ r + prec[ok] * centre[ok])
+            if not step.any():  # at its minimum, or no direction at all: no step to try
+                break
             moved = False
             for frac in CAL_STEP_FRACTIONS:
                 xn = np.clip(x + frac * step[:n], -CAL_BOUND, CAL_BOUND)
