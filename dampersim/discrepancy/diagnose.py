@@ -27,7 +27,8 @@ from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
                                            ESTIMATE_LOG_SD, GAIN_TOLERANCE, PRIOR_LOG_SD, REFINE_EVALUATIONS, UNCALIBRATED,
-                                           _effect_grid, _lstsq_bounded, _resid, _rms, calibrated_system)
+                                           _effect_grid, _lstsq_bounded, _resid, _rms, calibrated_system,
+                                           first_lower)
 from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, measured_coefficients,
                                               residual_half_sigma, split_half_sigma)
 from dampersim.discrepancy.naming import Namer
@@ -164,6 +165,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             s, errors = calibrated_system(system, x), {}
             return s, errors, coeffs(s, [pts[i] for i in held], errors)
 
+        def trial_at(xn):
+            """The calibrated model at log factors xn on the training points: (objective, xn, coefficients)."""
+            yn = coeffs(calibrated_system(system, xn), ptr)
+            return cost(yn, xn), xn, yn
+
         def columns(dy):
             return np.column_stack([lik.vec(dy[k], train) for k in range(len(dy))])
 
@@ -200,13 +206,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 jac = sensitivities(dys[steps[j]], steps[j], x, y_tr)
                 fresh = fresh or j == 0
                 dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
-                for frac in CAL_STEP_FRACTIONS:
-                    xn = x + frac * dx
-                    yn = coeffs(calibrated_system(system, xn), ptr)
-                    if cost(yn, xn) < c_now:
-                        x, y_tr, moved, first = xn, yn, True, j
-                        break
-                if moved:
+                found = first_lower(lambda f: trial_at(x + f * dx), c_now)
+                if found is not None:
+                    _, x, y_tr = found
+                    moved, first = True, j
                     break
             if not moved:
                 break
@@ -234,17 +237,14 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             jac = columns(dys[steps[0]])
             c_now = cost(y_tr, x)
             dx = _lstsq_bounded(jac, lik.mvec(train) - lik.vec(y_tr, train), x)
-            for frac in CAL_STEP_FRACTIONS:
-                xn = x + frac * dx
-                yn = coeffs(calibrated_system(system, xn), ptr)
-                if cost(yn, xn) < c_now:
-                    x, y_tr = xn, yn
-                    cal, err_cal, y_cal_h = on_held_out(x)
-                    # the naming keeps the Jacobian standardised before this one step; standardising it
-                    # again at the refitted weights moved the strict CI absorber's 90 % interval to
-                    # exclude the truth by 0.02 % (docs/discrepancy.md, Known limits)
-                    lik.fit_nuisance(y_tr, train)
-                    break
+            found = first_lower(lambda f: trial_at(x + f * dx), c_now)
+            if found is not None:
+                _, x, y_tr = found
+                cal, err_cal, y_cal_h = on_held_out(x)
+                # the naming keeps the Jacobian standardised before this one step; standardising it
+                # again at the refitted weights moved the strict CI absorber's 90 % interval to
+                # exclude the truth by 0.02 % (docs/discrepancy.md, Known limits)
+                lik.fit_nuisance(y_tr, train)
         y_cal = joined(y_tr, y_cal_h)
         dropped = {held[j] for j in err_cal}
         y_cal_h = y_cal_h[[j for j in range(len(held)) if j not in err_cal]]  # the held-out points that ran

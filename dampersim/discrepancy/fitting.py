@@ -148,6 +148,24 @@ def _lstsq_bounded(J, r, x0):
     return np.clip(x0 + dx, -CAL_BOUND, CAL_BOUND) - x0
 
 
+def prior_step(J, r, prec, centre):
+    """Gauss-Newton step d under Gaussian priors: minimises |r - J d|^2 + sum prec (d - centre)^2
+    (r and J standardised; prec the priors' precisions; centre each prior's centre less the
+    current parameter), so (J'J + diag prec) d = J'r + prec centre."""
+    return np.linalg.solve(J.T @ J + np.diag(prec), J.T @ r + prec * centre)
+
+
+def first_lower(trial, cost_now: float, fractions=CAL_STEP_FRACTIONS):
+    """The first step length of ``fractions`` (longest first) whose ``trial(fraction)``, a tuple
+    (objective, ...) from real runs, lowers the objective below ``cost_now``: that tuple, or None
+    when none does (the trials run in turn and stop at the first that does)."""
+    for frac in fractions:
+        out = trial(frac)
+        if out[0] < cost_now:
+            return out
+    return None
+
+
 __all__ = ["CALIBRATION", "UNCALIBRATED", "ESTIMATE_LOG_SD", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS",
            "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "COARSE_SEGMENTS", "calibrated_system",
-           "direction_step", "uncalibrated_systems", "coarse_system"]
+           "direction_step", "uncalibrated_systems", "coarse_system", "prior_step", "first_lower"]

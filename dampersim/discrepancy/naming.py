@@ -17,8 +17,8 @@ import numpy as np
 
 from dampersim.discrepancy import drive, selection
 from dampersim.discrepancy.effects import info, parameters_of, with_effect
-from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, CAL_STEP_FRACTIONS, PRIOR_LOG_SD, \
-    REFINE_EVALUATIONS, _effect_grid, _lstsq_bounded, calibrated_system
+from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
+    _effect_grid, _lstsq_bounded, calibrated_system, first_lower, prior_step
 from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, GAIN_PRIOR_SD
 
 #: log step of the finite differences for an effect's magnitude
@@ -62,9 +62,14 @@ class Namer:
         pts = self.points if points is None else points
         errs = {}
         y = drive.coefficients_of(self.runner, system, pts, errs)
+        self._record(name, errs, pts)
+        return y, bool(errs)
+
+    def _record(self, name, errs, pts):
+        """Record the failed runs {row: message} of ``pts`` against model ``name`` (the first
+        message per point is kept)."""
         for j, msg in errs.items():
             self.failures.setdefault(name, {}).setdefault(pts[j].id, msg)
-        return y, bool(errs)
 
     def cost(self, y, x, extra: float = 0.0) -> float:
         """Objective of a model: robust loss (nuisance fitted) + calibration prior + ``extra``
@@ -290,6 +295,13 @@ class Namer:
         def cost(ys, xs, ms):
             return self.cost(ys, xs, self._magnitude_prior(name, ms))
 
+        def trial(xs, ms, step, frac):
+            """(objective, factors, magnitude, coefficients) a fraction frac along step."""
+            xn = np.clip(xs + frac * step[:n], -CAL_BOUND, CAL_BOUND)
+            mn = clip_magnitude(name, ms * math.exp(frac * float(step[n])))
+            yn, failed = self.runs(system_at(xn, mn), name)
+            return (math.inf if failed else cost(yn, xn, mn)), xn, mn, yn
+
         y, failed = self.runs(system_at(x, m), name)
         if failed:
             return None
@@ -303,8 +315,7 @@ class Namer:
             errs = [{} for _ in trials]
             ys = drive.coefficients_of_sets(self.runner, trials, self.points, errs)
             for err in errs:
-                for j, msg in err.items():
-                    self.failures.setdefault(name, {}).setdefault(self.points[j].id, msg)
+                self._record(name, err, self.points)
             ok = np.array([not err for err in errs])
             with self.lik.using(nu):  # a failed derivative run gives no direction (0), never a fit
                 jac = np.column_stack([self.w((yk - y) / dk) if good else np.zeros(len(self.lik.mvec(self.train)))
@@ -312,22 +323,12 @@ class Namer:
                 r = self.lik.mvec(self.train) - self.lik.vec(y, self.train)
             centre = np.concatenate([-x, [math.log(e.magnitudes[1] / m)]])
             step = np.zeros(n + 1)  # the parameters without a direction stay: no pull to the prior alone
-            a = jac[:, ok]
             if ok.any():
-                step[ok] = np.linalg.solve(a.T @ a + np.diag(prec[ok]), a.T @ r + prec[ok] * centre[ok])
-            if not step.any():  # at its minimum, or no direction at all: no step to try
+                step[ok] = prior_step(jac[:, ok], r, prec[ok], centre[ok])
+            found = first_lower(lambda f: trial(x, m, step, f), c) if step.any() else None
+            if found is None:  # at its minimum, no direction at all, or no step length lowers the objective
                 break
-            moved = False
-            for frac in CAL_STEP_FRACTIONS:
-                xn = np.clip(x + frac * step[:n], -CAL_BOUND, CAL_BOUND)
-                mn = clip_magnitude(name, m * math.exp(frac * float(step[n])))
-                yn, failed = self.runs(system_at(xn, mn), name)
-                cn = math.inf if failed else cost(yn, xn, mn)
-                if cn < c:
-                    x, m, y, c, moved = xn, mn, yn, cn, True
-                    break
-            if not moved:
-                break
+            c, x, m, y = found
         return {"cost": c, "m": m, "x": x, "y": y, "base": None, "start": "refit", "system": system_at(x, m),
                 "shapes": {}, "column": jac[:, n], "jac": jac[:, :n]}
 
@@ -357,7 +358,7 @@ class Namer:
         centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])], np.zeros(len(cols))])
         with self.lik.using(self.lik.profile(fit["y"], self.train)[1]):
             r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
-        step = np.linalg.solve(jac.T @ jac + np.diag(prec), jac.T @ r + prec * centre)
+        step = prior_step(jac, r, prec, centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
         m = clip_magnitude(name, fit["m"] * math.exp(float(step[n])))
         x = np.clip(fit["x"] + step[:n], -math.log(2.0), math.log(2.0))
