@@ -282,6 +282,17 @@ class Likelihood:
         finally:
             self.nuisance = saved
 
+    def reweighting(self, y, rows, nuisance) -> np.ndarray:
+        """Row factors that carry standardised vectors at ``rows`` (:meth:`vec`, :meth:`mvec`: at
+        the stored robust weights) to the robust weights of model coefficients y at ``nuisance``.
+        The robust loss's gradient in a point's residuals is that of a least-squares term
+        weighted by its Huber weight (:func:`robust_weights`), so a Gauss-Newton step of the
+        robust loss linearised at y takes these weights (iteratively re-weighted least squares);
+        the stored ones are those of another model."""
+        w, _, _ = robust_weights(self.point_chi2(y, rows, nuisance), 2 * len(self.orders))
+        per_row = np.repeat(np.sqrt(w / self.weights[rows]), len(self.orders))
+        return np.concatenate([per_row, per_row])
+
     def loss(self, y, rows) -> float:
         """Robust chi^2 of model coefficients y at rows (current nuisance), plus the nuisance
         prior; infinite when y is not finite (a failed run is never a good fit)."""

@@ -274,7 +274,10 @@ class Namer:
         the library's values; :meth:`fit_shapes` may move them after), with sensitivities taken
         afresh at every iteration (CAL_DERIVATIVE_STEPS[0] for a factor, FD_STEP for the
         magnitude) and at most REFIT_ITERATIONS iterations; a parameter whose derivative run
-        fails is held where it is for that iteration.
+        fails is held where it is for that iteration. Each step weights the points by the robust
+        weights of the iteration's own model (:meth:`Likelihood.reweighting`), as the
+        calibration's iterations do; the returned Jacobians stay standardised at the stored
+        weights, which the evidence reads them with.
 
         For the effect the calibration without it has taken up: :meth:`fit` re-calibrates
         through the Jacobian taken where that calibration stopped, and when the calibration
@@ -322,9 +325,11 @@ class Namer:
                                        for yk, good, dk in zip(ys, ok, [h] * n + [fd])])
                 r = self.lik.mvec(self.train) - self.lik.vec(y, self.train)
             centre = np.concatenate([-x, [math.log(e.magnitudes[1] / m)]])
+            # the step at this model's own robust weights (the stored ones are the calibrated model's)
+            f = self.lik.reweighting(y, self.train, nu)
             step = np.zeros(n + 1)  # the parameters without a direction stay: no pull to the prior alone
             if ok.any():
-                step[ok] = prior_step(jac[:, ok], r, prec[ok], centre[ok])
+                step[ok] = prior_step(jac[:, ok] * f[:, None], r * f, prec[ok], centre[ok])
             found = first_lower(lambda f: trial(x, m, step, f), c) if step.any() else None
             if found is None:  # at its minimum, no direction at all, or no step length lowers the objective
                 break

@@ -53,6 +53,32 @@ def test_robust_loss_flags_the_one_bad_point_and_bounds_its_weight():
     assert np.allclose(np.delete(loss, 5), np.delete(chi, 5))
 
 
+def test_the_reweighting_gives_the_robust_losss_slope_where_the_stored_weights_do_not():
+    """A Gauss-Newton step of the robust loss at a model must weigh each point by that model's
+    Huber weight: the loss's change along a model change dy is -2 (f r) . (f w(dy)) to first
+    order, r and w(dy) standardised at the stored weights, f the reweighting. The stored weights
+    (all 1 here) give the one bad point its full quadratic pull."""
+    speed, model, noise, _ = _campaign(seed=1)
+    meas = model + noise
+    meas[5] += 3.0  # one point 30 sigma off at every order
+    sigma = np.full(meas.shape, 0.1)  # the good points' RMS standardised misfit 0.5: the threshold stays 3
+    lik = Likelihood(meas, sigma, speed, ORDERS)
+    rows = list(range(len(meas)))
+    nu = lik.fit_nuisance(model, rows, refresh_weights=False)
+    assert np.all(lik.weights == 1.0)
+    dy = np.zeros_like(model)
+    dy[[2, 5]] = np.random.default_rng(3).normal(size=(2, 8)) * (1 + 0.5j)
+    f = lik.reweighting(model, rows, nu)
+    assert f.shape == (2 * len(rows) * len(ORDERS),) and np.sum(f < 1.0) == 16  # the bad point's 16 rows
+    r = lik.mvec(rows) - lik.vec(model, rows)
+    slope_reweighted = -2.0 * float((f * r) @ (f * lik.vec(dy, rows)))
+    slope_stored = -2.0 * float(r @ lik.vec(dy, rows))
+    t = 1e-6  # small against the misfit (the loss's curvature term is t^2 |w(dy)|^2, 1e-9 of the slope)
+    slope = (lik.loss(model + t * dy, rows) - lik.loss(model - t * dy, rows)) / (2 * t)
+    assert slope == pytest.approx(slope_reweighted, rel=1e-6)
+    assert abs(slope_stored - slope) > 0.5 * abs(slope)
+
+
 def test_robust_threshold_follows_the_median_point():
     """When every point misfits alike (a missing effect), none is an outlier."""
     chi = np.full(10, 16 * 50.0)
