@@ -29,10 +29,11 @@ campaign's diagnosis, bounded at 6.55e10 by :func:`diagnosis_cost`, is admitted,
 the limit applies to every kind of request). The bound is work, not time, and the rate
 is an older measurement: the same command now gives 47 ns per
 step·DOF on the same machine (2.1e7 per second; docs/model.md §13 says why the code is not
-the cause), and that diagnosis took 878 s on 2 idle cores for 1872 of its 3039 bounded runs
-of about 2.2e7 step·DOF each (with the leading effect's re-calibration at each iteration's
-robust weights; 955 s for 2024 runs at the calibrated model's weights, commit 0d89dbf; 820 s
-for 1792 runs before that step, commit 81b62b5, 2.4e7), about 2.3e7 step·DOF per core second. So every
+the cause), and that diagnosis took 878 s on 2 idle cores for 1872 of its 3039
+bounded runs of about 2.2e7 step·DOF each (with the leading effect's re-calibration
+at each iteration's robust weights; 955 s for 2024 runs at the calibrated model's
+weights, commit 0d89dbf; 820 s for 1792 runs before that step, commit 81b62b5,
+2.4e7), about 2.3e7 step·DOF per core second. So every
 time this module derives from work reads 2.1 to 2.4 times short on that machine; the
 budgets, in step·DOF, are unaffected. Both are server settings, read from the
 environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in

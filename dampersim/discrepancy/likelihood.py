@@ -285,12 +285,17 @@ class Likelihood:
     def reweighting(self, y, rows, nuisance) -> np.ndarray:
         """Row factors that carry standardised vectors at ``rows`` (:meth:`vec`, :meth:`mvec`: at
         the stored robust weights) to the robust weights of model coefficients y at ``nuisance``.
-        The robust loss's gradient in a point's residuals is that of a least-squares term
-        weighted by its Huber weight (:func:`robust_weights`), so a Gauss-Newton step of the
-        robust loss linearised at y takes these weights (iteratively re-weighted least squares);
-        the stored ones are those of another model."""
+        With the down-weighting threshold held, the robust loss's gradient in a point's residuals
+        is that of a least-squares term weighted by its Huber weight (:func:`robust_weights`),
+        so a Gauss-Newton step of the robust loss linearised at y takes these weights
+        (iteratively re-weighted least squares); the stored ones are those of another model. The
+        threshold follows the median point's misfit once that exceeds 1, a dependence left out
+        here as re-weighted least squares with a fixed scale leaves it out. A row whose stored
+        weight is 0 gets 0."""
         w, _, _ = robust_weights(self.point_chi2(y, rows, nuisance), 2 * len(self.orders))
-        per_row = np.repeat(np.sqrt(w / self.weights[rows]), len(self.orders))
+        stored = self.weights[rows]
+        ratio = np.divide(w, stored, out=np.zeros_like(w), where=stored > 0)
+        per_row = np.repeat(np.sqrt(ratio), len(self.orders))
         return np.concatenate([per_row, per_row])
 
     def loss(self, y, rows) -> float:

@@ -326,10 +326,10 @@ class Namer:
                 r = self.lik.mvec(self.train) - self.lik.vec(y, self.train)
             centre = np.concatenate([-x, [math.log(e.magnitudes[1] / m)]])
             # the step at this model's own robust weights (the stored ones are the calibrated model's)
-            f = self.lik.reweighting(y, self.train, nu)
+            rw = self.lik.reweighting(y, self.train, nu)
             step = np.zeros(n + 1)  # the parameters without a direction stay: no pull to the prior alone
             if ok.any():
-                step[ok] = prior_step(jac[:, ok] * f[:, None], r * f, prec[ok], centre[ok])
+                step[ok] = prior_step(jac[:, ok] * rw[:, None], r * rw, prec[ok], centre[ok])
             found = first_lower(lambda f: trial(x, m, step, f), c) if step.any() else None
             if found is None:  # at its minimum, no direction at all, or no step length lowers the objective
                 break

@@ -62,12 +62,13 @@ DEFAULT_EXAMPLE = "hidden-effect-example"
 #: ``python -m dampersim diagnose examples/campaigns/hidden-effect-example --json``: 878 s on 2
 #: idle cores and 1872 model runs with the leading effect's re-calibration stepping at each
 #: iteration's own robust weights (naming.Namer.refit), so 146 core seconds per second, taken
-#: as 155 so that the estimate errs long (runs of the same code have differed by 3 %) with the
-#: solver settings DIAGNOSIS_MEASURED; other settings scale it by a test point's step·DOF. With
-#: the re-calibration at the calibrated model's weights it was 165 (955 s, 2024 runs on commit
-#: 0d89dbf), before that step 140 (820 s and 1792 runs on commit 81b62b5), and 46 at 18/8
-#: segments on commit dd443e3 (278 s, 1676 runs), which scaled to 48/16 had come to err short
-#: (595 s against 820 s) as the diagnosis came to run every point more often
+#: as 155 so that the estimate errs long (two runs of the earlier re-calibration, 2024 model
+#: runs each, differed by 3 %), with the solver settings DIAGNOSIS_MEASURED; other settings
+#: scale it by a test point's step·DOF. With the re-calibration at the calibrated model's
+#: weights it was 165 (955 s, 2024 runs on commit 0d89dbf), before that step 140 (820 s and
+#: 1792 runs on commit 81b62b5), and 46 at 18/8 segments on commit dd443e3 (278 s, 1676
+#: runs), which scaled to 48/16 had come to err short (595 s against 820 s) as the diagnosis
+#: came to run every point more often
 DIAGNOSIS_CORE_S_PER_RECORD_S = 155.0
 #: set-up of a diagnosis in the page's time estimate [s] (reading the campaign, starting workers)
 DIAGNOSIS_SETUP_S = 2.0

@@ -53,15 +53,17 @@ def test_robust_loss_flags_the_one_bad_point_and_bounds_its_weight():
     assert np.allclose(np.delete(loss, 5), np.delete(chi, 5))
 
 
-def test_the_reweighting_gives_the_robust_losss_slope_where_the_stored_weights_do_not():
+def test_the_reweighting_gives_the_robust_loss_slope_where_the_stored_weights_do_not():
     """A Gauss-Newton step of the robust loss at a model must weigh each point by that model's
     Huber weight: the loss's change along a model change dy is -2 (f r) . (f w(dy)) to first
     order, r and w(dy) standardised at the stored weights, f the reweighting. The stored weights
-    (all 1 here) give the one bad point its full quadratic pull."""
+    (all 1 here) give the one bad point its full quadratic pull. With the threshold held: the
+    median point's RMS misfit stays below 1 here (above it, the threshold moves with the median
+    point, a term re-weighted least squares leaves out)."""
     speed, model, noise, _ = _campaign(seed=1)
     meas = model + noise
     meas[5] += 3.0  # one point 30 sigma off at every order
-    sigma = np.full(meas.shape, 0.1)  # the good points' RMS standardised misfit 0.5: the threshold stays 3
+    sigma = np.full(meas.shape, 0.1)  # the good points' RMS standardised misfit about 0.6: the threshold stays 3
     lik = Likelihood(meas, sigma, speed, ORDERS)
     rows = list(range(len(meas)))
     nu = lik.fit_nuisance(model, rows, refresh_weights=False)
@@ -77,6 +79,33 @@ def test_the_reweighting_gives_the_robust_losss_slope_where_the_stored_weights_d
     slope = (lik.loss(model + t * dy, rows) - lik.loss(model - t * dy, rows)) / (2 * t)
     assert slope == pytest.approx(slope_reweighted, rel=1e-6)
     assert abs(slope_stored - slope) > 0.5 * abs(slope)
+
+
+def test_the_reweighting_carries_vectors_from_the_stored_weights_to_the_models_own():
+    """The stored weights and nuisance are another model's (one point moved so that it is
+    down-weighted there), and the model is read at a nuisance of its own: the factors squared
+    times the stored weights are the model's Huber weights at that nuisance, per point, on the
+    real and the imaginary halves alike."""
+    speed, model, noise, sigma = _campaign(seed=2)
+    meas = model + noise
+    lik = Likelihood(meas, sigma, speed, ORDERS)
+    rows = list(range(len(meas)))
+    other = model.copy()
+    other[4] += 1.0  # 20 sigma: point 4 is down-weighted in the stored weights
+    lik.fit_nuisance(other, rows)
+    stored = lik.weights.copy()
+    assert stored[4] < 0.5 and np.all(np.delete(stored, 4) == 1.0)
+    current = model.copy()
+    current[7] -= 1.0  # the model's own outlier: point 7
+    nu = np.array([1e-3, 2e-7])  # not the stored nuisance, and small against sigma (the median point stays below 1)
+    assert not np.allclose(nu, lik.nuisance)
+    f = lik.reweighting(current, rows, nu)
+    w_model = robust_weights(lik.point_chi2(current, rows, nu), 2 * len(ORDERS))[0]
+    assert w_model[7] < 0.5 and w_model[4] == 1.0
+    per_row = np.repeat(w_model, len(ORDERS))
+    np.testing.assert_allclose(f ** 2 * np.tile(np.repeat(stored, len(ORDERS)), 2), np.tile(per_row, 2), rtol=1e-12)
+    lik.weights[3] = 0.0  # a point the stored model gave no weight: no factor, never a division by zero
+    assert np.all(lik.reweighting(current, rows, nu).reshape(2, len(rows), len(ORDERS))[:, 3] == 0.0)
 
 
 def test_robust_threshold_follows_the_median_point():
