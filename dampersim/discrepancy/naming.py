@@ -366,7 +366,7 @@ class Namer:
         step = prior_step(jac, r, prec, centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
         m = clip_magnitude(name, fit["m"] * math.exp(float(step[n])))
-        x = np.clip(fit["x"] + step[:n], -math.log(2.0), math.log(2.0))
+        x = np.clip(fit["x"] + step[:n], -CAL_BOUND, CAL_BOUND)
         e = info(name)
         sysn = with_effect(_with_factors(self.starts, None, x), name, {**new, e.magnitude: m})
         yn, failed = self.runs(sysn, name)
