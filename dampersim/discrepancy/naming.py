@@ -340,8 +340,10 @@ class Namer:
     def fit_shapes(self, name, fit):
         """One Gauss-Newton step on the effect's shape parameters (log scale, prior
         SHAPE_PRIOR_SD) jointly with its magnitude and the calibration, accepted when a real
-        run lowers the objective. Adds the shape columns to ``fit`` (for the evidence and the
-        intervals) and returns it."""
+        run lowers the objective. The step weights the points by the robust weights of the
+        fit's own model (:meth:`Likelihood.reweighting`), as :meth:`refit`'s steps do; the
+        columns stay standardised at the stored weights. Adds the shape columns to ``fit``
+        (for the evidence and the intervals) and returns it."""
         shapes = SHAPES.get(name, ())
         if not shapes or fit is None or fit.get("base") is not None:  # not on top of another effect
             return fit
@@ -361,9 +363,11 @@ class Namer:
         prec = np.concatenate([self.prec_cal, [1.0 / selection.MAGNITUDE_PRIOR_SD ** 2],
                                np.full(len(cols), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
         centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])], np.zeros(len(cols))])
-        with self.lik.using(self.lik.profile(fit["y"], self.train)[1]):
+        nu = self.lik.profile(fit["y"], self.train)[1]
+        with self.lik.using(nu):
             r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
-        step = prior_step(jac, r, prec, centre)
+        rw = self.lik.reweighting(fit["y"], self.train, nu)  # the stored weights are the calibrated model's
+        step = prior_step(jac * rw[:, None], r * rw, prec, centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
         m = clip_magnitude(name, fit["m"] * math.exp(float(step[n])))
         x = np.clip(fit["x"] + step[:n], -CAL_BOUND, CAL_BOUND)
