@@ -312,7 +312,7 @@ class Namer:
         prec = np.concatenate([self.prec_cal, [1.0 / selection.MAGNITUDE_PRIOR_SD ** 2]])
         jac = None
         for _ in range(REFIT_ITERATIONS):
-            nu = self.lik.profile(y, self.train)[1]
+            nu, r, rw = self._at_own_weights(y)
             m_fd, fd = fd_magnitude(name, m)
             trials = [system_at(x + h * k, m) for k in np.eye(n)] + [system_at(x, m_fd)]
             errs = [{} for _ in trials]
@@ -323,10 +323,7 @@ class Namer:
             with self.lik.using(nu):  # a failed derivative run gives no direction (0), never a fit
                 jac = np.column_stack([self.w((yk - y) / dk) if good else np.zeros(len(self.lik.mvec(self.train)))
                                        for yk, good, dk in zip(ys, ok, [h] * n + [fd])])
-                r = self.lik.mvec(self.train) - self.lik.vec(y, self.train)
             centre = np.concatenate([-x, [math.log(e.magnitudes[1] / m)]])
-            # the step at this model's own robust weights (the stored ones are the calibrated model's)
-            rw = self.lik.reweighting(y, self.train, nu)
             step = np.zeros(n + 1)  # the parameters without a direction stay: no pull to the prior alone
             if ok.any():
                 step[ok] = prior_step(jac[:, ok] * rw[:, None], r * rw, prec[ok], centre[ok])
@@ -341,9 +338,13 @@ class Namer:
         """One Gauss-Newton step on the effect's shape parameters (log scale, prior
         SHAPE_PRIOR_SD) jointly with its magnitude and the calibration, accepted when a real
         run lowers the objective. The step weights the points by the robust weights of the
-        fit's own model (:meth:`Likelihood.reweighting`), as :meth:`refit`'s steps do; the
-        columns stay standardised at the stored weights. Adds the shape columns to ``fit``
-        (for the evidence and the intervals) and returns it."""
+        fit's own model (:meth:`_at_own_weights`), as :meth:`refit`'s steps do. The columns are
+        those the evidence reads: standardised at the stored weights and nuisance (the
+        calibration's Jacobian at the weights before the calibration's recheck step,
+        docs/discrepancy.md, Known limits), while the residual and the weights take the fit's
+        own nuisance, a difference of first order in the nuisance's change that the real run
+        accepting or refusing the step covers. Adds the shape columns to ``fit`` (for the
+        evidence and the intervals) and returns it."""
         shapes = SHAPES.get(name, ())
         if not shapes or fit is None or fit.get("base") is not None:  # not on top of another effect
             return fit
@@ -363,10 +364,7 @@ class Namer:
         prec = np.concatenate([self.prec_cal, [1.0 / selection.MAGNITUDE_PRIOR_SD ** 2],
                                np.full(len(cols), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
         centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])], np.zeros(len(cols))])
-        nu = self.lik.profile(fit["y"], self.train)[1]
-        with self.lik.using(nu):
-            r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
-        rw = self.lik.reweighting(fit["y"], self.train, nu)  # the stored weights are the calibrated model's
+        _, r, rw = self._at_own_weights(fit["y"])
         step = prior_step(jac * rw[:, None], r * rw, prec, centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
         m = clip_magnitude(name, fit["m"] * math.exp(float(step[n])))
@@ -380,6 +378,17 @@ class Namer:
         if c < fit["cost"]:
             fit.update({"cost": c, "m": m, "x": x, "y": yn, "system": sysn, "shapes": new})
         return fit
+
+    def _at_own_weights(self, y) -> tuple:
+        """(nuisance, residual, row factors) for a Gauss-Newton step of the robust loss
+        linearised at model coefficients y: the channels' nuisance fitted to y, the standardised
+        training residual at it, and the factors (:meth:`Likelihood.reweighting`) that carry
+        standardised vectors from the stored robust weights (the calibrated model's) to y's own.
+        A step takes ``prior_step(J * factors[:, None], residual * factors, ...)``."""
+        nu = self.lik.profile(y, self.train)[1]
+        with self.lik.using(nu):
+            r = self.lik.mvec(self.train) - self.lik.vec(y, self.train)
+        return nu, r, self.lik.reweighting(y, self.train, nu)
 
     def _nuisance(self, y, nuisance):
         """The channels' gain and delay columns (standardised) at model coefficients y and

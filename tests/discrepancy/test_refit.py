@@ -19,6 +19,8 @@ from dampersim.discrepancy.selection import MAGNITUDE_PRIOR_SD
 from dampersim.discrepancy.likelihood import Likelihood
 from dampersim.parameters import default_parameters
 
+from tests.discrepancy.toy_namer import log_factors, patch_runs
+
 NAME = "pendulum_absorber"
 TRUE_INERTIA = 0.002  # kg m^2
 POINTS = [SimpleNamespace(id=f"p{i}") for i in range(3)]
@@ -33,14 +35,7 @@ X_TRUE = np.array([0.04, -0.06, 0.05, 0.08, -0.05, 0.07])
 
 def _coordinates(system):
     """(log factors, log magnitude against the truth) of a parameter set the toy is asked for."""
-    flat = {"outer.spring.stiffness": (system.outer.spring.stiffness, BASE.outer.spring.stiffness),
-            "inner.spring.stiffness": (system.inner.spring.stiffness, BASE.inner.spring.stiffness),
-            "inertias.primary": (system.inertias.primary, BASE.inertias.primary),
-            "inertias.secondary": (system.inertias.secondary, BASE.inertias.secondary),
-            "friction.outer.alpha": (system.friction.outer.alpha, BASE.friction.outer.alpha),
-            "friction.pair_outer.alpha": (system.friction.pair_outer.alpha, BASE.friction.pair_outer.alpha)}
-    x = np.array([math.log(flat[members[0]][0] / flat[members[0]][1]) for members in CALIBRATION.values()])
-    return x, math.log(system.effects.pendulum_absorber.inertia / TRUE_INERTIA)
+    return log_factors(system), math.log(system.effects.pendulum_absorber.inertia / TRUE_INERTIA)
 
 
 def _toy(system):
@@ -55,22 +50,7 @@ def _toy(system):
 @pytest.fixture()
 def namer(monkeypatch):
     calls = []
-
-    def coefficients_of_sets(runner, systems, points, errors=None, halves=None):
-        out = np.array([[_toy(s)[int(p.id[1:])] for p in points] for s in systems])
-        for k, s in enumerate(systems):
-            calls.extend([1] * len(points))
-            if s.effects.pendulum_absorber.inertia > runner.fail_above:
-                out[k] = np.nan
-                if errors is not None:
-                    errors[k].update({i: "diverged" for i in range(len(points))})
-        return out
-
-    def coefficients_of(runner, system, points, errors=None):
-        return coefficients_of_sets(runner, [system], points, None if errors is None else [errors])[0]
-
-    monkeypatch.setattr(drive, "coefficients_of_sets", coefficients_of_sets)
-    monkeypatch.setattr(drive, "coefficients_of", coefficients_of)
+    patch_runs(monkeypatch, _toy, lambda runner, s: s.effects.pendulum_absorber.inertia > runner.fail_above, calls)
     truth = naming.with_effect(naming.calibrated_system(BASE, X_TRUE), NAME, {"inertia": TRUE_INERTIA})
     meas = _toy(truth)
     lik = Likelihood(meas, np.full(meas.shape, 0.05), [100.0] * len(POINTS), drive.ORDERS)
