@@ -339,7 +339,8 @@ class Namer:
         SHAPE_PRIOR_SD) jointly with its magnitude and the calibration, accepted when a real
         run lowers the objective. The step weights the points by the robust weights of the
         fit's own model (:meth:`_at_own_weights`), as :meth:`refit`'s steps do. The columns are
-        those the evidence reads: standardised at the stored weights and nuisance (the
+        those the evidence reads: standardised at the stored weights and nuisance (after
+        :meth:`refit`, its factors' and magnitude's at its last iteration's nuisance; the
         calibration's Jacobian at the weights before the calibration's recheck step,
         docs/discrepancy.md, Known limits), while the residual and the weights take the fit's
         own nuisance, a difference of first order in the nuisance's change that the real run
