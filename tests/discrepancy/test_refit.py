@@ -17,14 +17,12 @@ from dampersim.discrepancy import drive, naming
 from dampersim.discrepancy.fitting import CALIBRATION, PRIOR_LOG_SD
 from dampersim.discrepancy.selection import MAGNITUDE_PRIOR_SD
 from dampersim.discrepancy.likelihood import Likelihood
-from dampersim.parameters import default_parameters
 
-from tests.discrepancy.toy_namer import log_factors, patch_runs
+from tests.discrepancy.toy_namer import BASE, log_factors, patch_runs
 
 NAME = "pendulum_absorber"
 TRUE_INERTIA = 0.002  # kg m^2
 POINTS = [SimpleNamespace(id=f"p{i}") for i in range(3)]
-BASE = default_parameters()
 RNG = np.random.default_rng(11)
 SENS = RNG.normal(size=(len(POINTS), len(drive.ORDERS), len(CALIBRATION) + 1)) * (1 + 1j)
 #: weight of the toy's quadratic term (0: a linear model, whose posterior mode is known)

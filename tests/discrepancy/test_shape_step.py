@@ -15,12 +15,10 @@ import pytest
 from dampersim.discrepancy import drive, naming
 from dampersim.discrepancy.fitting import CALIBRATION
 from dampersim.discrepancy.likelihood import Likelihood, robust_weights
-from dampersim.parameters import default_parameters
 
-from tests.discrepancy.toy_namer import log_factors, patch_runs
+from tests.discrepancy.toy_namer import BASE, log_factors, patch_runs
 
 NAME = "pendulum_absorber"
-BASE = default_parameters()
 LIBRARY = {p["name"]: p["default"] for p in naming.parameters_of(NAME)}  # the shapes' start values
 TRUE_INERTIA = 0.002  # kg m^2
 TRUE_ORDER = 2.2  # engine order the truth's pendulums are tuned to; the library starts at 2.0

@@ -12,6 +12,7 @@ from dampersim.discrepancy import drive
 from dampersim.discrepancy.fitting import CALIBRATION
 from dampersim.parameters import default_parameters
 
+#: the parameter set the toys' log factors are read against (and the tests build their sets from)
 BASE = default_parameters()
 
 
