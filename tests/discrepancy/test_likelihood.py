@@ -320,3 +320,59 @@ def test_the_posterior_compares_penalised_evidences_and_never_a_failed_run():
     z = selection.model_log_evidence(models, ["a", "b", "c", "d"], ["a+c"], {"c": 4.0, "d": 1.0},
                            {"none": -5.0, "a": -2.0, "a+c": -1.0}, {"a": -30.0, "a+c": -0.5}, ["d"])
     assert z == {"none": -105.0, "a": -112.0, "b": -math.inf, "c": -101.0, "d": -math.inf, "a+c": -71.5}
+
+
+def test_a_training_gain_counts_only_as_far_as_its_own_held_out_prediction_comes_true():
+    """The replication check (selection.unreplicated_gain). The data carry a systematic
+    misfit at order 2 that "none" leaves, and every model below takes it up at the training
+    points. At the held-out points:
+    - "true" predicts it as it is: its gain there is the one it predicts, full credit;
+    - "sideways" predicts a change of the same size at order 3, where the data have none
+      (a candidate imitating a misfit outside the library): its predicted gain does not
+      come, no credit;
+    - "double" predicts twice the misfit (a mistuned absorber): its held-out gain is about
+      0 against the 4 x 32 chi^2 it predicts, and the credit is the one-sigma share the
+      formula gives, computed here by hand from the plain chi^2 (no point is down-weighted:
+      every point carries the same misfit);
+    - "silent" predicts them as "none" does: the held-out points cannot check it (D = 0)
+      and it keeps its training gain."""
+    sigma = 0.05
+    speed, model, noise, sig = _campaign(n=16, seed=7, sigma=sigma)
+    misfit = np.zeros_like(model)
+    misfit[:, 1] = 0.1  # 2 sigma at order 2 of every point
+    lik = Likelihood(model + misfit + noise, sig, speed, ORDERS)
+    train, held = list(range(12)), [12, 13, 14, 15]
+    nu = np.zeros(2)
+    sideways = model[held].copy()
+    sideways[:, 2] += 0.1
+
+    def fit(y_held):
+        return {"y": model[train] + misfit[train], "yh": y_held, "nuisance": nu}
+
+    models = {"none": {"y": model[train], "yh": model[held], "nuisance": nu},
+              "true": fit(model[held] + misfit[held]), "sideways": fit(sideways),
+              "double": fit(model[held] + 2.0 * misfit[held]), "silent": fit(model[held]), "crashed": fit(None)}
+    eta = 0.5
+    out = selection.unreplicated_gain(lik, models, train, held, eta)
+    assert set(out) == {"true", "sideways", "double", "silent"}
+
+    def chi2(y, rows):
+        d = (lik.meas[rows] - y) / (sigma / math.sqrt(2.0))
+        return float(np.sum(d.real ** 2 + d.imag ** 2))
+
+    g_t = 0.5 * eta * (chi2(model[train], train) - chi2(model[train] + misfit[train], train))
+    assert g_t > 20.0  # 12 points x 8 chi^2 each, tempered: a decisive gain if it were credited
+    for label in out:
+        assert out[label]["training_gain"] == pytest.approx(g_t)
+    assert out["true"]["replicated"] == 1.0 and out["true"]["penalty"] == 0.0
+    assert out["true"]["held_out_expected"] == pytest.approx(0.5 * eta * 4 * 8.0)  # |0.1|^2 / (sigma^2 / 2) at 4 points
+    assert out["sideways"]["held_out_gain"] < 0.0
+    assert out["sideways"]["credited"] == 0.0 and out["sideways"]["penalty"] == pytest.approx(-g_t)
+    assert out["silent"]["held_out_expected"] == 0.0 and out["silent"]["penalty"] == 0.0
+    double = model[held] + 2.0 * misfit[held]
+    g_h = 0.5 * eta * (chi2(model[held], held) - chi2(double, held))
+    d2 = np.sum(np.abs(2.0 * misfit[held]) ** 2) / (sigma ** 2 / 2)  # 4 points x 32 chi^2
+    share = (g_h + math.sqrt(eta * d2)) / (0.5 * eta * d2)
+    assert 0.0 < share < 0.5  # a partial credit, not all or nothing
+    assert out["double"]["replicated"] == pytest.approx(share)
+    assert out["double"]["penalty"] == pytest.approx((share - 1.0) * g_t)
