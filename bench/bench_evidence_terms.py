@@ -9,9 +9,7 @@ one ramp) the whole diagnosis runs (no next-test design) and prints, per fitted 
   prior terms that it starts from) and ``occam`` (laplace + cost / 2: with a learning rate
   of 1 the Occam factor, what the fitted parameters' prior and posterior widths add; below 1
   it also holds the tempering terms of selection.log_evidence);
-* ``ramps``: the ramps' predictive log likelihood; ``penalty``: the held-out penalty (since
-  the replication check, the one-sided term plus the unreplicated training gain, as the
-  diagnosis's ``likelihood.held_out_penalty``; ``likelihood.held_out_replication`` splits it);
+* ``ramps``: the ramps' predictive log likelihood; ``penalty``: the held-out penalty;
   ``total``: the sum the posterior reads, with ``log_prior`` the model prior's log;
 * ``x``: the fitted log calibration factors; ``start``: where the fit started;
   ``refactored`` ("none" only): the fitted effect whose calibration factors "none" took

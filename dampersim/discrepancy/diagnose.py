@@ -362,10 +362,6 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # since an effect can imitate the model's own systematic error there as on the
         # training points (docs/discrepancy.md, Naming)
         penalty = selection.held_out_penalty(lik, models, held, eta)
-        # and a training gain counts only as far as the held-out points bear it out (unreplicated_gain)
-        replication = selection.unreplicated_gain(lik, models, train, held, eta)
-        penalty = {m: penalty.get(m, 0.0) + replication.get(m, {}).get("penalty", 0.0)
-                   for m in [*penalty, *(m for m in replication if m not in penalty)]}
         # posterior over all models: fitted models by their Laplace evidence, the others by
         # the linear screen's evidence relative to "none" (exact for a linear signature;
         # their ramps are taken as those of "none")
@@ -462,8 +458,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "nuisance": {"output_gain": math.exp(final["nuisance"][0]),
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
-                    "held_out_penalty": penalty, "held_out_replication": replication,
-                    "calibration_taken_from": models["none"].get("refactored"),
+                    "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
                     "recalibrated": recalibrated,
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None, "ramp_log_likelihood": ramp_ll,

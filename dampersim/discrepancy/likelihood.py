@@ -228,13 +228,6 @@ class Likelihood:
         d = (self.meas[rows] - self.transform(y, rows, nuisance)) / (self.sigma[rows] / math.sqrt(2.0))
         return np.sum(d.real ** 2 + d.imag ** 2, axis=1)
 
-    def distance2(self, y_a, nu_a, y_b, nu_b, rows) -> float:
-        """Plain chi^2 distance between two models' predictions at rows, each at its own
-        nuisance: the held-out chi^2 one model expects to gain over the other if it is the
-        true one (and the spread of that gain, see :func:`~dampersim.discrepancy.selection.unreplicated_gain`)."""
-        d = (self.transform(y_a, rows, nu_a) - self.transform(y_b, rows, nu_b)) / (self.sigma[rows] / math.sqrt(2.0))
-        return float(np.sum(d.real ** 2 + d.imag ** 2))
-
     def nuisance_prior(self, nuisance=None) -> float:
         lg, tau = self.nuisance if nuisance is None else nuisance
         return (lg / GAIN_PRIOR_SD) ** 2 + (tau / DELAY_PRIOR_SD) ** 2

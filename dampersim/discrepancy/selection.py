@@ -13,8 +13,7 @@ MAGNITUDE_PRIOR_SD. The evidence is the Laplace approximation around the fit:
 standardised residuals with respect to all fitted parameters, P the priors' precision and
 eta the likelihood's learning rate (:func:`learning_rate`; 1 when the best model fits to
 the noise, and then C = L + Q is the minimised objective). The last two terms are the Occam
-factor: a parameter the data do not need costs evidence. The held-out points then check
-each fitted model (:func:`held_out_penalty`, :func:`unreplicated_gain`). Posterior probabilities follow
+factor: a parameter the data do not need costs evidence. Posterior probabilities follow
 from the evidence and the model priors of MODEL_PRIOR (stated in docs/discrepancy.md); 90 %
 intervals of a fitted parameter are its estimate +- 1.645 posterior standard deviations in
 log space (from A^-1).
@@ -219,57 +218,6 @@ def held_out_penalty(lik, models, held, eta: float) -> dict:
     return out
 
 
-def unreplicated_gain(lik, models, train, held, eta: float) -> dict:
-    """{model: terms} of the replication check of every fitted model whose held-out run
-    worked: how much of the held-out gain over "none" that the model itself predicts is
-    really there, and the share of its training gain that is therefore credited.
-
-    The Laplace evidence assumes that one of the models compared is the truth. When none is
-    (a rig part changed, a friction law of another shape), a candidate can take up part of
-    the misfit at the training points it was fitted to and gain evidence there while its
-    predictions at the points it was not fitted to improve on "none" by much less than they
-    would if it were the truth. In nats (tempered, as the evidence):
-
-        G_t = eta/2 (L_none - L)                training gain (robust chi^2 over the training points)
-        G_h = eta/2 (H_none - H)                held-out gain (robust chi^2 over the held-out points)
-        E_h = eta/2 D^2,  s_h = sqrt(eta) D     G_h's mean and standard deviation if the model is the truth
-        f = min(1, max(0, (G_h + s_h) / E_h))   the share replicated, one standard deviation in its favour
-        credited = f G_t
-
-    with D^2 the chi^2 distance between the model's and "none"'s held-out predictions
-    (:meth:`~dampersim.discrepancy.likelihood.Likelihood.distance2`): the held-out chi^2
-    difference is sum(2 r delta + delta^2) / sigma^2 with delta the predictions' difference
-    and r the model's residual, of variance sigma^2 / eta after tempering. The expectation
-    is the model's own, point by point, so a true effect whose signature is weaker at the
-    held-out points than at the training ones keeps its credit; a model that predicts no
-    change there (D = 0) cannot be checked and keeps it too (f = 1 when G_h + s_h >= E_h).
-    ``penalty`` = credited - G_t <= 0 joins the model's log evidence. A training gain <= 0
-    is left as it is: a model that fits the training points worse already pays for it in
-    its evidence."""
-    if not held or not train or models["none"]["yh"] is None:
-        return {}
-    n_t, n_h = 2 * len(train) * len(lik.orders), 2 * len(held) * len(lik.orders)
-    none = models["none"]
-    l0 = lik.robust_reduced_chi2(none["y"], train, none["nuisance"]) * n_t
-    h0 = lik.robust_reduced_chi2(none["yh"], held, none["nuisance"]) * n_h
-    out = {}
-    for label, fit in models.items():
-        if label == "none" or fit["yh"] is None:
-            continue
-        g_t = 0.5 * eta * (l0 - lik.robust_reduced_chi2(fit["y"], train, fit["nuisance"]) * n_t)
-        g_h = 0.5 * eta * (h0 - lik.robust_reduced_chi2(fit["yh"], held, fit["nuisance"]) * n_h)
-        d2 = lik.distance2(fit["yh"], fit["nuisance"], none["yh"], none["nuisance"], held)
-        e_h, s_h = 0.5 * eta * d2, math.sqrt(eta * d2)
-        if not all(map(math.isfinite, (g_t, g_h, d2))):
-            continue
-        share = 1.0 if g_h + s_h >= e_h else max(0.0, (g_h + s_h) / e_h)
-        credited = share * g_t if g_t > 0 else g_t
-        out[label] = {"training_gain": g_t, "held_out_gain": g_h, "held_out_expected": e_h, "held_out_sd": s_h,
-                      "replicated": share, "credited": credited,
-                      "penalty": credited - g_t + 0.0}  # + 0.0: no "-0.0" in the JSON
-    return out
-
-
 def model_log_evidence(models: dict, candidates, pairs, screen_z: dict, ramp_ll: dict, penalty: dict,
                        unfitted) -> dict:
     """{model: log evidence} of every model the posterior compares. ``models``: the fitted
@@ -295,6 +243,6 @@ def model_log_evidence(models: dict, candidates, pairs, screen_z: dict, ramp_ll:
 
 
 __all__ = ["MAGNITUDE_PRIOR_SD", "SHAPE_PRIOR_SD", "MODEL_PRIOR", "Z90", "DETECTION_POSTERIOR", "learning_rate",
-           "log_evidence", "held_out_penalty", "unreplicated_gain", "model_log_evidence",
+           "log_evidence", "held_out_penalty", "model_log_evidence",
            "posterior_covariance", "interval90", "model_priors", "posterior", "linear_screen_evidence",
            "detection_chi2", "threshold_magnitude"]
