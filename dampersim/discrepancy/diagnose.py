@@ -461,7 +461,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
                     "recalibrated": recalibrated,
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
-                    "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None, "ramp_log_likelihood": ramp_ll,
+                    "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
+                    "ramp_log_likelihood": ramp_ll,
                     "ramp_noise_scale": ramp_lik.scales.get(top) if ramp_lik is not None else None,
                     "ramp_samples": ramp_lik.residuals if ramp_lik is not None else 0},
     )
