@@ -366,7 +366,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the linear screen's evidence relative to "none" (exact for a linear signature;
         # their ramps are taken as those of "none")
         screen_z = {n: namer.screen_evidence(screen[n], eta) for n in cands if n not in models}
-        log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted)
+        # every model may also carry a smooth misfit no library effect names (docs/discrepancy.md,
+        # Naming): a candidate gains only what it explains beyond such a misfit
+        unnamed = {m: {"torsional": namer.unnamed_gain(f, f["effects"], eta),
+                       "ramps": ramp_lik.unnamed.get(m, 0.0) if ramp_lik is not None else 0.0}
+                   for m, f in models.items()}
+        log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted,
+                                             {m: sum(v.values()) for m, v in unnamed.items()})
         priors = selection.model_priors(cands, pairs)
         post = selection.posterior(log_z, priors)
         judged = [m for m in models if models[m]["yh"] is not None]
@@ -463,6 +469,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_log_likelihood": ramp_ll,
+                    "unnamed_misfit": unnamed,
                     "ramp_noise_scale": ramp_lik.scales.get(top) if ramp_lik is not None else None,
                     "ramp_samples": ramp_lik.residuals if ramp_lik is not None else 0},
     )

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from dampersim.discrepancy import drive, selection
+from dampersim.discrepancy import drive, selection, unnamed
 from dampersim.discrepancy.effects import info, parameters_of, with_effect
 from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
     _effect_grid, _lstsq_bounded, calibrated_system, first_lower, prior_step
@@ -411,17 +411,32 @@ class Namer:
         systematic: the model's own discretisation error moves a fitted magnitude without
         adding scatter, and an interval from the scatter alone would not cover it. eta: the
         likelihood's learning rate (:func:`~dampersim.discrepancy.selection.learning_rate`)."""
-        cols = fit.get("columns", [])
-        nu_cols, nu_prec = self._nuisance(fit["y"], fit["nuisance"])
-        jac = np.column_stack([self.jac_of(fit), *cols, nu_cols])
-        prec = np.concatenate([self.prec_cal, np.full(len(names), 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2),
-                               np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2), nu_prec])
+        jac, prec = self._evidence_columns(fit, names)
         cov = selection.posterior_covariance(jac, prec, eta)
         if bias is not None:
             shift = eta * (cov @ (jac.T @ bias))
             cov = cov + np.outer(shift, shift)
         loss = self.data_loss(fit["y"], fit["nuisance"])
         return selection.log_evidence(fit["cost"], jac, prec, eta, loss, self._offset(fit, names)), cov
+
+    def _evidence_columns(self, fit, names) -> tuple:
+        """(Jacobian, prior precisions) of a fitted model's parameters in the evidence's order."""
+        cols = fit.get("columns", [])
+        nu_cols, nu_prec = self._nuisance(fit["y"], fit["nuisance"])
+        jac = np.column_stack([self.jac_of(fit), *cols, nu_cols])
+        prec = np.concatenate([self.prec_cal, np.full(len(names), 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2),
+                               np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2), nu_prec])
+        return jac, prec
+
+    def unnamed_gain(self, fit, names, eta: float = 1.0) -> float:
+        """The torsional evidence gain of an unnamed smooth misfit beside a fitted model
+        (:func:`dampersim.discrepancy.unnamed.torsion_gain`), read with its evidence's columns,
+        offsets and learning rate eta."""
+        jac, prec = self._evidence_columns(fit, names)
+        with self.lik.using(fit["nuisance"]):
+            r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
+        basis = unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])
+        return unnamed.torsion_gain(r, jac, prec, self._offset(fit, names), eta, basis)
 
     @staticmethod
     def _offset(fit, names) -> np.ndarray:

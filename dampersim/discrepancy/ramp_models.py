@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from dampersim.discrepancy import drive, fitting, naming
+from dampersim.discrepancy import drive, fitting, naming, unnamed
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.discrepancy.fitting import CALIBRATION, calibrated_system
@@ -31,7 +31,8 @@ def magnitude(system, name) -> float:
 def evidence(runner, system, x, models, points):
     """Each model's ramp prediction: (RampLikelihood, {model: windups}, {model: log
     likelihood}, {model: chi^2}); the RampLikelihood's ``scales`` holds each model's fitted
-    uncertainty scale. The ramps' sensitivities to the calibration factors are run
+    uncertainty scale, its ``unnamed`` each model's evidence gain from an unnamed smooth
+    misfit (:func:`dampersim.discrepancy.unnamed.ramp_gain`). The ramps' sensitivities to the calibration factors are run
     once at the calibrated model (kept as the RampLikelihood's ``cols_x``), to each effect's
     magnitude once per fitted model; shape parameters are not carried over."""
     h = fitting.CAL_DERIVATIVE_STEPS[0]
@@ -45,7 +46,8 @@ def evidence(runner, system, x, models, points):
     ll, chi = {}, {}
     cov_none = models["none"]["cov"]  # the same kind of covariance as the effect models'
     pad = [np.zeros(lik_r.residuals)] * (cov_none.shape[0] - len(cols_x))  # the channels: not on the ramps
-    ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], np.column_stack([*cols_x, *pad]), cov_none)
+    jacs = {"none": (np.column_stack([*cols_x, *pad]), cov_none)}
+    ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], *jacs["none"])
     scales, whitened = {"none": lik_r.scale}, {"none": lik_r.whitened}
     for label, fit in models.items():
         if label == "none":
@@ -57,12 +59,15 @@ def evidence(runner, system, x, models, points):
             moved = with_effect(fit["system"], name, {info(name).magnitude: m_fd})
             cols.append(lik_r.column(ramps_lik.run_ramps(runner, moved, points), runs[label], step))
         cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes, channels: not on the ramps
-        ll[label], chi[label], _, _ = lik_r.predictive(runs[label], np.column_stack(cols), fit["cov"])
+        jacs[label] = (np.column_stack(cols), fit["cov"])
+        ll[label], chi[label], _, _ = lik_r.predictive(runs[label], *jacs[label])
         scales[label], whitened[label] = lik_r.scale, lik_r.whitened
     # the model that explains the ramps best fixes their effective share (scaling every
     # model's log likelihood from here on) and the noise scale of detectability
     ll = lik_r.settle(ll, scales, whitened)
     lik_r.cols_x = cols_x
+    # the unnamed smooth misfit's evidence on the ramps, read at the settled share
+    lik_r.unnamed = {m: unnamed.ramp_gain(lik_r, runs[m], *jacs[m], ramps_lik.SCALES) for m in jacs}
     return lik_r, runs, ll, chi
 
 

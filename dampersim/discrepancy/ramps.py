@@ -119,6 +119,7 @@ class RampLikelihood:
         self.fraction = 1.0  # the effective share of independent samples (see effective_share)
         self.scales = {}  # {model: its prediction's uncertainty scale} (settle)
         self.reference = "none"  # the model whose ramp prediction is best (settle, ramp_reference)
+        self.unnamed = {}  # {model: evidence gain of an unnamed smooth misfit} (ramp_models.evidence)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:

@@ -154,9 +154,10 @@ def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
     seen = {}
     real = selection.model_log_evidence
 
-    def spy(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted):
+    def spy(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted, unnamed):
         seen["penalty"], seen["pairs"], seen["ramp_ll"] = dict(penalty), list(pairs), dict(ramp_ll)
-        seen["log_z"] = real(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted)
+        seen["unnamed"] = dict(unnamed)
+        seen["log_z"] = real(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted, unnamed)
         return seen["log_z"]
 
     monkeypatch.setattr(selection, "model_log_evidence", spy)
@@ -165,5 +166,9 @@ def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
     assert seen["log_z"] == d.likelihood["log_evidence"]
     # the ramps' term as the posterior read it (this stand-in campaign has none: {})
     assert seen["ramp_ll"] == d.likelihood["ramp_log_likelihood"]
+    # the unnamed misfit's term of every fitted model, torsional plus ramps, as the posterior read it
+    reported = d.likelihood["unnamed_misfit"]
+    assert set(seen["unnamed"]) == set(reported) and "none" in reported
+    assert seen["unnamed"] == {m: v["torsional"] + v["ramps"] for m, v in reported.items()}
     expect = selection.posterior(seen["log_z"], selection.model_priors(["clutch_slip", "turbine_drag"], seen["pairs"]))
     assert {k: d.posterior[k] for k in expect} == pytest.approx(expect)

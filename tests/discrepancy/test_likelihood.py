@@ -320,3 +320,9 @@ def test_the_posterior_compares_penalised_evidences_and_never_a_failed_run():
     z = selection.model_log_evidence(models, ["a", "b", "c", "d"], ["a+c"], {"c": 4.0, "d": 1.0},
                            {"none": -5.0, "a": -2.0, "a+c": -1.0}, {"a": -30.0, "a+c": -0.5}, ["d"])
     assert z == {"none": -105.0, "a": -112.0, "b": -math.inf, "c": -101.0, "d": -math.inf, "a+c": -71.5}
+    # an unnamed smooth misfit's gain joins each fitted model's evidence; a screened candidate
+    # takes that of "none" with the rest of its evidence
+    z = selection.model_log_evidence(models, ["a", "b", "c", "d"], ["a+c"], {"c": 4.0, "d": 1.0},
+                                     {"none": -5.0, "a": -2.0, "a+c": -1.0}, {"a": -30.0, "a+c": -0.5}, ["d"],
+                                     {"none": 8.0, "a": -1.0, "a+c": 0.5})
+    assert z == {"none": -97.0, "a": -113.0, "b": -math.inf, "c": -93.0, "d": -math.inf, "a+c": -71.0}

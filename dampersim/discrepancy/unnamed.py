@@ -1,0 +1,156 @@
+"""The evidence that a model's residual holds a smooth misfit no library effect names.
+
+Every fitted model (and "none") is read twice: as fitted, and with an unnamed smooth misfit
+added to its prediction, a linear combination of a few basis functions whose coefficients
+have a Gaussian prior of spread sd, the spread itself uniform over a small grid that starts
+at 0 (no such misfit). Its log evidence gain is
+
+    D = log mean_sd N(r; 0, S + sd^2 B B') / N(r; 0, S)
+
+(r the model's residual at its prior centre, S the residual's covariance with the model's
+fitted parameters marginalised, linearised; B the basis), so that a candidate effect which
+takes up part of a misfit it does not really express gains only what it adds beyond that
+generic misfit, and a model whose residual is white pays log(len(grid)) at most.
+
+* Torsional points: the complex order coefficients times (1 + sum_j (a_j + i b_j) P_j(u)),
+  P_j Legendre polynomials of degree 0..TORSION_DEGREE in u, the excitation frequency
+  k Omega's log mapped onto [-1, 1] over the training cells: a relative amplitude and
+  phase error smooth in frequency, as a transfer path the model lacks (a rig part, a
+  transducer) leaves. Spreads TORSION_SDS (relative).
+* Ramps: the windup plus sum_j (c_j + d_j s) P_j(v), v the input torque over its largest
+  magnitude in that ramp, s the torque's direction (+1 loading, -1 unloading): a smooth
+  error of the loading and unloading curves, as a friction or stiffness law of another
+  shape leaves. Spreads RAMP_SDS_DEG; the ramps' per-model uncertainty scale is fitted
+  again with the misfit present.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: highest Legendre degree in log frequency of the torsional misfit (amplitude and phase each)
+TORSION_DEGREE = 3
+#: prior spreads of the torsional misfit's coefficients (relative to the coefficient), grid
+TORSION_SDS = (0.0, 0.01, 0.03, 0.1)
+#: highest Legendre degree in normalised input torque of the ramps' misfit (each branch term)
+RAMP_DEGREE = 3
+#: prior spreads of the ramps' misfit coefficients [deg], grid
+RAMP_SDS_DEG = (0.0, 0.03, 0.1, 0.3, 1.0)
+
+
+def legendre(u, degree: int) -> np.ndarray:
+    """Legendre polynomials P_0..P_degree at u in [-1, 1] (len(u) x (degree + 1))."""
+    return np.polynomial.legendre.legvander(np.asarray(u, dtype=float), degree)
+
+
+def spread_gain(r_s, btb, sds) -> float:
+    """log mean over ``sds`` of N(r; 0, S + sd^2 B B') / N(r; 0, S), from the whitened terms
+    r_s = B' S^-1 r and btb = B' S^-1 B (matrix determinant lemma; sd = 0 gives 0)."""
+    terms = []
+    k = btb.shape[0]
+    for sd in sds:
+        if sd <= 0:
+            terms.append(0.0)
+            continue
+        m = np.eye(k) / sd ** 2 + btb
+        sign, logdet = np.linalg.slogdet(np.eye(k) + sd ** 2 * btb)
+        if sign <= 0:
+            terms.append(-math.inf)
+            continue
+        terms.append(0.5 * float(r_s @ np.linalg.solve(m, r_s)) - 0.5 * logdet)
+    top = max(terms)
+    return float(top + math.log(np.mean(np.exp(np.asarray(terms) - top))))
+
+
+def torsion_basis(lik, y, rows, nuisance) -> np.ndarray:
+    """Standardised columns (as :meth:`Likelihood.vec`) of the torsional misfit's basis at
+    model coefficients y (rows x orders): y P_j(u) and i y P_j(u) for j = 0..TORSION_DEGREE."""
+    f = np.log(np.outer(lik.speed[rows], lik.orders))
+    span = float(np.ptp(f))
+    u = 2.0 * (f - f.min()) / span - 1.0 if span > 0 else np.zeros_like(f)
+    p = legendre(u.ravel(), TORSION_DEGREE).reshape(*u.shape, TORSION_DEGREE + 1)
+    y = np.asarray(y, dtype=complex)
+    cols = []
+    with lik.using(nuisance):
+        for j in range(TORSION_DEGREE + 1):
+            cols.append(lik.vec(y * p[..., j], rows))
+            cols.append(lik.vec(1j * y * p[..., j], rows))
+    return np.column_stack(cols)
+
+
+def torsion_gain(r_fit, jac, prec, offset, eta: float, basis) -> float:
+    """The torsional log evidence gain D of the unnamed misfit for a model fitted with
+    standardised residual ``r_fit``, Jacobian ``jac`` of all its fitted parameters, their prior
+    precisions ``prec``, their offsets from the prior centres ``offset`` and the likelihood's
+    learning rate eta (the standardised noise variance is 1 / eta). Linear Gaussian: the
+    residual at the prior centre is r_fit + J offset, with covariance S = I / eta + J P^-1 J'."""
+    jac = np.asarray(jac, dtype=float)
+    r0 = np.asarray(r_fit, dtype=float) + jac @ np.asarray(offset, dtype=float)
+    a = eta * (jac.T @ jac) + np.diag(np.asarray(prec, dtype=float))
+
+    def s_inv(v):  # Woodbury: S^-1 = eta I - eta^2 J A^-1 J'
+        return eta * v - eta ** 2 * (jac @ np.linalg.solve(a, jac.T @ v))
+
+    sb = s_inv(basis)
+    return spread_gain(sb.T @ r0, basis.T @ sb, TORSION_SDS)
+
+
+def ramp_basis(lik_r) -> np.ndarray:
+    """Columns of the ramps' misfit basis over the stacked compared samples [rad per unit
+    coefficient]: P_j(v) and s P_j(v) per ramp, block-diagonal over the ramps."""
+    from dampersim.discrepancy.ramps import _filtered  # the same low pass as the compared samples
+
+    blocks = []
+    for p in lik_r.points:
+        torque = _filtered(np.asarray(p.input_torque, dtype=float), p.sample_rate_hz)
+        v = torque[lik_r.idx[p.id]]
+        top = float(np.max(np.abs(v))) if len(v) else 0.0
+        v = v / top if top > 0 else np.zeros_like(v)
+        s = np.sign(np.gradient(torque)[lik_r.idx[p.id]])
+        leg = legendre(v, RAMP_DEGREE)
+        blocks.append(np.column_stack([leg, leg * s[:, None]]))
+    n, k = sum(b.shape[0] for b in blocks), sum(b.shape[1] for b in blocks)
+    out, i, j = np.zeros((n, k)), 0, 0
+    for b in blocks:
+        out[i:i + b.shape[0], j:j + b.shape[1]] = b
+        i, j = i + b.shape[0], j + b.shape[1]
+    return out
+
+
+def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
+    """The ramps' log evidence gain D of the unnamed misfit for a model's prediction (its
+    windups, sensitivities ``jac`` and parameter covariance ``cov``, as
+    :meth:`RampLikelihood.predictive` takes them): for every spread the samples' uncertainty
+    scale is fitted again over ``scales``, and the log likelihoods are tempered by the ramps'
+    effective share (``lik_r.fraction``) as the ramps' own term is. 0 without samples and for
+    a failed run (whose ramp term is already -inf)."""
+    if not lik_r.residuals:
+        return 0.0
+    r = lik_r.residual(windups)
+    if r is None:
+        return 0.0
+    j, c, sig2 = lik_r._parts(jac, cov)
+    jcj = j @ c @ j.T
+    basis = ramp_basis(lik_r)
+    bbt = basis @ basis.T
+    best = []
+    for sd in (math.radians(d) for d in RAMP_SDS_DEG):
+        top = -math.inf
+        for scale in scales:
+            s = np.diag(sig2 * scale ** 2) + jcj + sd ** 2 * bbt
+            sign, logdet = np.linalg.slogdet(s)
+            if sign <= 0:
+                continue
+            ll = -0.5 * float(r @ np.linalg.solve(s, r)) - 0.5 * logdet
+            top = max(top, ll)
+        best.append(lik_r.fraction * top)
+    base = best[0]
+    terms = np.asarray(best) - base
+    m = float(np.max(terms))
+    return float(m + math.log(np.mean(np.exp(terms - m))))
+
+
+__all__ = ["TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "legendre", "spread_gain",
+           "torsion_basis", "torsion_gain", "ramp_basis", "ramp_gain"]
