@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from dampersim.discrepancy import design, drive, fitting, model_terms, pickup, ramp_models, selection
+from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
 from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIONS, CALIBRATION, COARSE_SEGMENTS,
@@ -366,13 +367,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # the linear screen's evidence relative to "none" (exact for a linear signature;
         # their ramps are taken as those of "none")
         screen_z = {n: namer.screen_evidence(screen[n], eta) for n in cands if n not in models}
-        # every model may also carry a smooth misfit no library effect names (docs/discrepancy.md,
-        # Naming): a candidate gains only what it explains beyond such a misfit
-        unnamed = {m: {"torsional": namer.unnamed_gain(f, f["effects"], eta),
-                       "ramps": ramp_lik.unnamed.get(m, 0.0) if ramp_lik is not None else 0.0}
-                   for m, f in models.items()}
+        # "none" may hold a smooth misfit no library effect names (docs/discrepancy.md, Naming):
+        # a candidate has to explain the data better than such a misfit does
+        unnamed = {"torsional": namer.unnamed_gain(models["none"], [], eta),
+                   "ramps": ramp_lik.unnamed if ramp_lik is not None else 0.0}
+        unnamed["log_evidence"] = misfit.combined(unnamed["torsional"], unnamed["ramps"])
         log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted,
-                                             {m: sum(v.values()) for m, v in unnamed.items()})
+                                             unnamed["log_evidence"])
         priors = selection.model_priors(cands, pairs)
         post = selection.posterior(log_z, priors)
         judged = [m for m in models if models[m]["yh"] is not None]

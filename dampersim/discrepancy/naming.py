@@ -463,7 +463,9 @@ class Namer:
         """The magnitude at the detection threshold of effect ``name`` for this campaign:
         where the chi^2 improvement it would bring, after the calibration and the channels'
         gain and delay have absorbed what they can (its signature projected off those
-        directions under their priors), minus its magnitude prior's cost, reaches what a
+        directions under their priors), minus what an unnamed smooth misfit beside "none"
+        would take of it (:mod:`dampersim.discrepancy.unnamed`; torsional points only) and its
+        magnitude prior's cost, reaches what a
         posterior of DETECTION_POSTERIOR against "none" needs
         (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): the
         chi^2 the ramps would add at magnitude m (None: torsional points only); eta: the
@@ -475,7 +477,9 @@ class Namer:
         cal = self.starts["calibrated"][0]
         nu_cols, nu_prec = self._nuisance(y_cal, nuisance)
         absorb = np.column_stack([self.jac if jac is None else jac, nu_cols])
-        a = eta * (absorb.T @ absorb) + np.diag(np.concatenate([self.prec_cal, nu_prec]))
+        prec = np.concatenate([self.prec_cal, nu_prec])
+        a = eta * (absorb.T @ absorb) + np.diag(prec)
+        basis = unnamed.torsion_basis(self.lik, y_cal, self.train, nuisance)
         mags, gains = [], []
         for m in e.magnitudes:
             if m == e.magnitudes[1] and y_typ is not None:
@@ -490,7 +494,8 @@ class Namer:
             mags.append(m)
             ramps = ramp_gain(name, m) if ramp_gain is not None else 0.0
             torsional = eta * float(d @ d) - eta ** 2 * float(proj @ np.linalg.solve(a, proj))
-            gains.append(torsional + ramps - self._magnitude_prior(name, m))
+            share = unnamed.signature_share(d, absorb, prec, eta, basis)
+            gains.append(torsional - share + ramps - self._magnitude_prior(name, m))
         if len(mags) < 2:
             return None
         needed = selection.detection_chi2(priors[name], priors["none"])

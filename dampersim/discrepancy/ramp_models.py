@@ -31,10 +31,11 @@ def magnitude(system, name) -> float:
 def evidence(runner, system, x, models, points):
     """Each model's ramp prediction: (RampLikelihood, {model: windups}, {model: log
     likelihood}, {model: chi^2}); the RampLikelihood's ``scales`` holds each model's fitted
-    uncertainty scale, its ``unnamed`` each model's evidence gain from an unnamed smooth
-    misfit (:func:`dampersim.discrepancy.unnamed.ramp_gain`). The ramps' sensitivities to the calibration factors are run
-    once at the calibrated model (kept as the RampLikelihood's ``cols_x``), to each effect's
-    magnitude once per fitted model; shape parameters are not carried over."""
+    uncertainty scale, its ``unnamed`` the ramps' evidence gain of an unnamed smooth misfit
+    beside "none" (:func:`dampersim.discrepancy.unnamed.ramp_gain`). The ramps' sensitivities
+    to the calibration factors are run once at the calibrated model (kept as the
+    RampLikelihood's ``cols_x``), to each effect's magnitude once per fitted model; shape
+    parameters are not carried over."""
     h = fitting.CAL_DERIVATIVE_STEPS[0]
     lik_r, runs = ramps_lik.ramp_likelihood(runner, calibrated_system(system, x), points)
     runs = {"none": runs}
@@ -66,8 +67,8 @@ def evidence(runner, system, x, models, points):
     # model's log likelihood from here on) and the noise scale of detectability
     ll = lik_r.settle(ll, scales, whitened)
     lik_r.cols_x = cols_x
-    # the unnamed smooth misfit's evidence on the ramps, read at the settled share
-    lik_r.unnamed = {m: unnamed.ramp_gain(lik_r, runs[m], *jacs[m], ramps_lik.SCALES) for m in jacs}
+    # the unnamed smooth misfit's evidence on the ramps beside "none", read at the settled share
+    lik_r.unnamed = unnamed.ramp_gain(lik_r, runs["none"], *jacs["none"], ramps_lik.SCALES)
     return lik_r, runs, ll, chi
 
 

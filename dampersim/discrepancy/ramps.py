@@ -119,7 +119,7 @@ class RampLikelihood:
         self.fraction = 1.0  # the effective share of independent samples (see effective_share)
         self.scales = {}  # {model: its prediction's uncertainty scale} (settle)
         self.reference = "none"  # the model whose ramp prediction is best (settle, ramp_reference)
-        self.unnamed = {}  # {model: evidence gain of an unnamed smooth misfit} (ramp_models.evidence)
+        self.unnamed = 0.0  # evidence gain of an unnamed smooth misfit beside "none" (ramp_models.evidence)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:
@@ -163,6 +163,12 @@ class RampLikelihood:
         """Number of compared samples of each ramp, in stacking order."""
         return [len(self.idx[p.id]) for p in self.points]
 
+    def torque_samples(self) -> list:
+        """The low-passed input torque [N m] at the compared samples of each ramp, in stacking
+        order (the same low pass and samples as the windups)."""
+        return [_filtered(np.asarray(p.input_torque, dtype=float), p.sample_rate_hz)[self.idx[p.id]]
+                for p in self.points]
+
     def offset_columns(self) -> np.ndarray:
         """d samples / d offset of each ramp's angle zero (samples x ramps)."""
         cols, k = np.zeros((self.residuals, len(self.points))), 0
@@ -191,7 +197,7 @@ class RampLikelihood:
             total += c
         return total, per
 
-    def _parts(self, jac, cov):
+    def parts(self, jac, cov):
         """(J, C, sample variances): the sensitivities with the ramps' angle offsets appended,
         the parameter covariance with the offsets' prior, and sigma^2 of every sample."""
         so2 = math.radians(OFFSET_PRIOR_DEG) ** 2
@@ -204,8 +210,8 @@ class RampLikelihood:
         return j, c, np.concatenate([self.sigma[p.id] ** 2 for p in self.points])
 
     def _covariance(self, jac, cov, scale: float):
-        """diag((scale sigma)^2) + J C J' (see :meth:`_parts`)."""
-        j, c, sig2 = self._parts(jac, cov)
+        """diag((scale sigma)^2) + J C J' (see :meth:`parts`)."""
+        j, c, sig2 = self.parts(jac, cov)
         return np.diag(sig2 * scale ** 2) + j @ c @ j.T
 
     def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float | None = None) -> float:
@@ -256,7 +262,7 @@ class RampLikelihood:
         r = self.residual(windups)
         if r is None:
             return -math.inf, math.inf, None, None
-        j, c, sig2 = self._parts(jac, cov)
+        j, c, sig2 = self.parts(jac, cov)
         n = j.shape[1] - len(self.points)
         jcj = j @ c @ j.T
         best = None

@@ -219,25 +219,24 @@ def held_out_penalty(lik, models, held, eta: float) -> dict:
 
 
 def model_log_evidence(models: dict, candidates, pairs, screen_z: dict, ramp_ll: dict, penalty: dict,
-                       unfitted, unnamed: dict | None = None) -> dict:
+                       unfitted, unnamed: float = 0.0) -> dict:
     """{model: log evidence} of every model the posterior compares. ``models``: the fitted
     ones ({label: fit with "log_z" and "yh", the held-out coefficients or None when that run
     failed}); a fitted model's evidence is its Laplace evidence on the training points plus
     its ramps' log likelihood (``ramp_ll``) plus its held-out penalty (``penalty``,
     :func:`held_out_penalty`). A candidate that was not fitted takes "none"'s evidence plus
     its linear screen's (``screen_z``, relative to "none"; its ramps are taken as those of
-    "none"). ``unnamed``: each fitted model's evidence gain from an unnamed smooth misfit beside
-    it (:mod:`dampersim.discrepancy.unnamed`; a screened candidate takes that of "none" with the
-    rest of its evidence). A model whose held-out run failed, and a candidate every fit of which failed
-    (``unfitted``), get -inf: a failed run is never a match."""
-    unnamed = unnamed or {}
-    log_z = {"none": models["none"]["log_z"] + ramp_ll.get("none", 0.0) + unnamed.get("none", 0.0)}
+    "none"). ``unnamed``: what "none" gains from an unnamed smooth misfit
+    (:func:`dampersim.discrepancy.unnamed.combined`), added after the screened candidates took
+    its evidence: a screened effect is not given that misfit. A model whose held-out run failed,
+    and a candidate every fit of which failed (``unfitted``), get -inf: a failed run is never a match."""
+    log_z = {"none": models["none"]["log_z"] + ramp_ll.get("none", 0.0)}
     for label in [*candidates, *pairs]:
         if label in models:
-            log_z[label] = (models[label]["log_z"] + ramp_ll.get(label, 0.0) + penalty.get(label, 0.0)
-                            + unnamed.get(label, 0.0))
+            log_z[label] = models[label]["log_z"] + ramp_ll.get(label, 0.0) + penalty.get(label, 0.0)
         else:
             log_z[label] = log_z["none"] + screen_z[label]
+    log_z["none"] += unnamed
     for label, fit in models.items():
         if fit["yh"] is None:
             log_z[label] = -math.inf

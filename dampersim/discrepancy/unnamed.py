@@ -1,16 +1,22 @@
-"""The evidence that a model's residual holds a smooth misfit no library effect names.
+"""The evidence that the residual of "no missing effect" holds a smooth misfit no library
+effect names.
 
-Every fitted model (and "none") is read twice: as fitted, and with an unnamed smooth misfit
-added to its prediction, a linear combination of a few basis functions whose coefficients
+"none" (no library effect missing) is read as a mixture: with prior probability
+1 - MISFIT_PRIOR the calibrated model as it is, with MISFIT_PRIOR the calibrated model plus
+an unnamed smooth misfit, a linear combination of a few basis functions whose coefficients
 have a Gaussian prior of spread sd, the spread itself uniform over a small grid that starts
-at 0 (no such misfit). Its log evidence gain is
+at 0. For one kind of data the misfit's log evidence gain is
 
     D = log mean_sd N(r; 0, S + sd^2 B B') / N(r; 0, S)
 
-(r the model's residual at its prior centre, S the residual's covariance with the model's
-fitted parameters marginalised, linearised; B the basis), so that a candidate effect which
-takes up part of a misfit it does not really express gains only what it adds beyond that
-generic misfit, and a model whose residual is white pays log(len(grid)) at most.
+(r the residual at the prior centre, S its covariance with the calibration and the channels
+marginalised, linearised; B the basis), and "none" gains log(1 - q + q exp(D_torsional +
+D_ramps)) (:func:`combined`). A candidate effect then has to explain the data better than
+such a generic misfit does, not only better than the calibrated model: an effect that takes
+up part of a misfit it does not express (a rig part, a friction law of another shape) no
+longer wins by default. The effects themselves are not given the misfit: "an effect and an
+unnamed misfit" would be a pair, and the ramps, which a wrong effect predicts badly, would
+lose their power to refute it (tried: see docs/discrepancy.md, Benchmark).
 
 * Torsional points: the complex order coefficients times (1 + sum_j (a_j + i b_j) P_j(u)),
   P_j Legendre polynomials of degree 0..TORSION_DEGREE in u, the excitation frequency
@@ -20,8 +26,8 @@ generic misfit, and a model whose residual is white pays log(len(grid)) at most.
 * Ramps: the windup plus sum_j (c_j + d_j s) P_j(v), v the input torque over its largest
   magnitude in that ramp, s the torque's direction (+1 loading, -1 unloading): a smooth
   error of the loading and unloading curves, as a friction or stiffness law of another
-  shape leaves. Spreads RAMP_SDS_DEG; the ramps' per-model uncertainty scale is fitted
-  again with the misfit present.
+  shape leaves. Spreads RAMP_SDS_DEG; the ramps' uncertainty scale is fitted again with
+  the misfit present.
 """
 
 from __future__ import annotations
@@ -30,6 +36,8 @@ import math
 
 import numpy as np
 
+#: prior probability, within "no missing effect", that an unnamed smooth misfit is present
+MISFIT_PRIOR = 0.2
 #: highest Legendre degree in log frequency of the torsional misfit (amplitude and phase each)
 TORSION_DEGREE = 3
 #: prior spreads of the torsional misfit's coefficients (relative to the coefficient), grid
@@ -38,11 +46,24 @@ TORSION_SDS = (0.0, 0.01, 0.03, 0.1)
 RAMP_DEGREE = 3
 #: prior spreads of the ramps' misfit coefficients [deg], grid
 RAMP_SDS_DEG = (0.0, 0.03, 0.1, 0.3, 1.0)
+#: a change of the sampled torque below this share of the ramp's largest one is a hold
+HOLD_SHARE = 0.1
 
 
 def legendre(u, degree: int) -> np.ndarray:
     """Legendre polynomials P_0..P_degree at u in [-1, 1] (len(u) x (degree + 1))."""
     return np.polynomial.legendre.legvander(np.asarray(u, dtype=float), degree)
+
+
+def combined(torsional: float, ramps: float) -> float:
+    """The log evidence "none" gains from the unnamed misfit: log(1 - q + q exp(D_t + D_r))
+    with q = MISFIT_PRIOR. When the misfit explains nothing it costs between 0 and
+    log(1 - q) = -0.22: -0.16 with the torsional D at its floor -log 4 (the grid's sd = 0
+    term) and the ramps' at 0, -0.21 with both at their floors."""
+    d = float(torsional) + float(ramps)
+    q = MISFIT_PRIOR
+    top = max(0.0, d)
+    return float(top + math.log((1.0 - q) * math.exp(-top) + q * math.exp(d - top)))
 
 
 def spread_gain(r_s, btb, sds) -> float:
@@ -66,7 +87,9 @@ def spread_gain(r_s, btb, sds) -> float:
 
 def torsion_basis(lik, y, rows, nuisance) -> np.ndarray:
     """Standardised columns (as :meth:`Likelihood.vec`) of the torsional misfit's basis at
-    model coefficients y (rows x orders): y P_j(u) and i y P_j(u) for j = 0..TORSION_DEGREE."""
+    model coefficients y (rows x orders): y P_j(u) and i y P_j(u) for j = 0..TORSION_DEGREE.
+    y P_0 repeats the output channel's gain, whose prior (3 %) the misfit widens: an output
+    gain that far off is part of what "none" may not express."""
     f = np.log(np.outer(lik.speed[rows], lik.orders))
     span = float(np.ptp(f))
     u = 2.0 * (f - f.min()) / span - 1.0 if span > 0 else np.zeros_like(f)
@@ -97,20 +120,49 @@ def torsion_gain(r_fit, jac, prec, offset, eta: float, basis) -> float:
     return spread_gain(sb.T @ r0, basis.T @ sb, TORSION_SDS)
 
 
+def signature_share(d, jac, prec, eta: float, basis) -> float:
+    """What "none" gains from the unnamed misfit when its torsional residual is an effect's
+    standardised signature d, as chi^2: twice :func:`combined` of :func:`torsion_gain` at d
+    over that at no signature (the calibration at its prior centre, the noise left out, as
+    the detectability's chi^2 leaves it out; the ramps left out). Near d's own chi^2
+    improvement (after the calibration) for a strong signature smooth in frequency, near 0
+    for one the basis cannot follow."""
+    zero = np.zeros(np.asarray(jac).shape[1])
+    at_d = combined(torsion_gain(d, jac, prec, zero, eta, basis), 0.0)
+    return 2.0 * (at_d - combined(torsion_gain(np.zeros_like(d), jac, prec, zero, eta, basis), 0.0))
+
+
+def ramp_direction(v) -> np.ndarray:
+    """The torque's direction at each compared sample of one ramp (+1 loading, -1 unloading)
+    from the change since the sample before: a change below HOLD_SHARE of the ramp's largest
+    change between samples (a hold, or noise on it) keeps the direction the torque came with,
+    as a hold stays on the branch it reached; the samples before the first move take that
+    move's direction (+1 for a ramp that never moves)."""
+    v = np.asarray(v, dtype=float)
+    dv = np.diff(v, prepend=v[:1])
+    big = np.zeros(len(v), dtype=bool)
+    if np.any(dv):
+        big = np.abs(dv) >= HOLD_SHARE * float(np.max(np.abs(dv)))
+    out = np.empty(len(v))
+    last = float(np.sign(dv[np.argmax(big)])) if np.any(big) else 1.0
+    for k in range(len(v)):
+        if big[k]:
+            last = float(np.sign(dv[k]))
+        out[k] = last
+    return out
+
+
 def ramp_basis(lik_r) -> np.ndarray:
     """Columns of the ramps' misfit basis over the stacked compared samples [rad per unit
-    coefficient]: P_j(v) and s P_j(v) per ramp, block-diagonal over the ramps."""
-    from dampersim.discrepancy.ramps import _filtered  # the same low pass as the compared samples
-
+    coefficient]: P_j(v) and s P_j(v) per ramp (:func:`ramp_direction`), block-diagonal over
+    the ramps. P_0 repeats the ramp's angle offset, whose prior (0.2 deg) the misfit widens:
+    a windup zero that far off is part of what "none" may not express."""
     blocks = []
-    for p in lik_r.points:
-        torque = _filtered(np.asarray(p.input_torque, dtype=float), p.sample_rate_hz)
-        v = torque[lik_r.idx[p.id]]
-        top = float(np.max(np.abs(v))) if len(v) else 0.0
-        v = v / top if top > 0 else np.zeros_like(v)
-        s = np.sign(np.gradient(torque)[lik_r.idx[p.id]])
+    for torque in lik_r.torque_samples():
+        top = float(np.max(np.abs(torque))) if len(torque) else 0.0
+        v = torque / top if top > 0 else np.zeros_like(torque)
         leg = legendre(v, RAMP_DEGREE)
-        blocks.append(np.column_stack([leg, leg * s[:, None]]))
+        blocks.append(np.column_stack([leg, leg * ramp_direction(torque)[:, None]]))
     n, k = sum(b.shape[0] for b in blocks), sum(b.shape[1] for b in blocks)
     out, i, j = np.zeros((n, k)), 0, 0
     for b in blocks:
@@ -120,8 +172,8 @@ def ramp_basis(lik_r) -> np.ndarray:
 
 
 def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
-    """The ramps' log evidence gain D of the unnamed misfit for a model's prediction (its
-    windups, sensitivities ``jac`` and parameter covariance ``cov``, as
+    """The ramps' log evidence gain D of the unnamed misfit beside the calibrated model's
+    prediction (its windups, sensitivities ``jac`` and parameter covariance ``cov``, as
     :meth:`RampLikelihood.predictive` takes them): for every spread the samples' uncertainty
     scale is fitted again over ``scales``, and the log likelihoods are tempered by the ramps'
     effective share (``lik_r.fraction``) as the ramps' own term is. 0 without samples and for
@@ -131,7 +183,7 @@ def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
     r = lik_r.residual(windups)
     if r is None:
         return 0.0
-    j, c, sig2 = lik_r._parts(jac, cov)
+    j, c, sig2 = lik_r.parts(jac, cov)
     jcj = j @ c @ j.T
     basis = ramp_basis(lik_r)
     bbt = basis @ basis.T
@@ -152,5 +204,6 @@ def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
     return float(m + math.log(np.mean(np.exp(terms - m))))
 
 
-__all__ = ["TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "legendre", "spread_gain",
-           "torsion_basis", "torsion_gain", "ramp_basis", "ramp_gain"]
+__all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
+           "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share", "ramp_direction",
+           "ramp_basis", "ramp_gain"]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from dampersim.cli import main
-from dampersim.discrepancy import drive
+from dampersim.discrepancy import drive, unnamed
 from dampersim.discrepancy.campaign_write import write_campaign
 from dampersim.discrepancy.diagnose import INSUFFICIENT, _resid, diagnose
 from dampersim.discrepancy.likelihood import Likelihood
@@ -156,7 +156,7 @@ def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
 
     def spy(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted, unnamed):
         seen["penalty"], seen["pairs"], seen["ramp_ll"] = dict(penalty), list(pairs), dict(ramp_ll)
-        seen["unnamed"] = dict(unnamed)
+        seen["unnamed"] = unnamed
         seen["log_z"] = real(models, candidates, pairs, screen_z, ramp_ll, penalty, unfitted, unnamed)
         return seen["log_z"]
 
@@ -166,9 +166,9 @@ def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
     assert seen["log_z"] == d.likelihood["log_evidence"]
     # the ramps' term as the posterior read it (this stand-in campaign has none: {})
     assert seen["ramp_ll"] == d.likelihood["ramp_log_likelihood"]
-    # the unnamed misfit's term of every fitted model, torsional plus ramps, as the posterior read it
+    # the unnamed misfit's term of "none" as the posterior read it, from its two parts
     reported = d.likelihood["unnamed_misfit"]
-    assert set(seen["unnamed"]) == set(reported) and "none" in reported
-    assert seen["unnamed"] == {m: v["torsional"] + v["ramps"] for m, v in reported.items()}
+    assert seen["unnamed"] == reported["log_evidence"] == unnamed.combined(reported["torsional"], reported["ramps"])
+    assert reported["ramps"] == 0.0  # no ramp in this campaign
     expect = selection.posterior(seen["log_z"], selection.model_priors(["clutch_slip", "turbine_drag"], seen["pairs"]))
     assert {k: d.posterior[k] for k in expect} == pytest.approx(expect)

@@ -60,18 +60,17 @@ def test_a_white_residual_pays_little_and_a_smooth_misfit_gains():
 
 
 def _ramp_dense(lik, model, jac, cov):
-    """The ramps' gain by brute force: for each sd, the best scale's log likelihood."""
+    """The ramps' gain by brute force with scipy's Gaussian density: for each sd the best
+    scale's log likelihood, tempered by the effective share inside the mean over the sds."""
+    from scipy.stats import multivariate_normal
+
     r = lik.residual(model)
-    j, c, sig2 = lik._parts(jac, cov)
+    j, c, sig2 = lik.parts(jac, cov)
     basis = U.ramp_basis(lik)
-    best = []
-    for sd in np.radians(U.RAMP_SDS_DEG):
-        lls = []
-        for scale in SCALES:
-            s = np.diag(sig2 * scale ** 2) + j @ c @ j.T + sd ** 2 * basis @ basis.T
-            lls.append(-0.5 * float(r @ np.linalg.solve(s, r)) - 0.5 * np.linalg.slogdet(s)[1])
-        best.append(lik.fraction * max(lls))
-    t = np.array(best) - best[0]
+    best = [max(multivariate_normal(np.zeros(len(r)), np.diag(sig2 * scale ** 2) + j @ c @ j.T
+                                    + sd ** 2 * basis @ basis.T).logpdf(r) for scale in SCALES)
+            for sd in np.radians(U.RAMP_SDS_DEG)]
+    t = lik.fraction * (np.array(best) - best[0])
     return float(t.max() + math.log(np.mean(np.exp(t - t.max()))))
 
 
@@ -101,8 +100,12 @@ def test_the_ramp_gain_sees_a_loop_width_error_and_not_noise():
         lik = RampLikelihood([meas], model, model)
         j = np.zeros((lik.residuals, 1))
         g = U.ramp_gain(lik, model, j, cov, SCALES)
-        assert g == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-9, abs=1e-9)
+        # two routes to the same Gaussian densities: agreement to 1e-7 relative (rounding)
+        assert g == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7, abs=1e-7)
         gains.append(g)
+        lik.fraction = 0.3  # the ramps' effective share tempers every spread's likelihood
+        assert U.ramp_gain(lik, model, j, cov, SCALES) == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7,
+                                                                        abs=1e-7)
     assert -math.log(len(U.RAMP_SDS_DEG)) - 1e-9 <= gains[0] < 1.0  # the bound, reached when no spread helps
     assert gains[1] > 5.0
 
@@ -111,3 +114,57 @@ def test_a_failed_ramp_run_gains_nothing():
     p = F.ramp("r0")
     lik = RampLikelihood([p], {p.id: p.windup}, {p.id: p.windup})
     assert U.ramp_gain(lik, {p.id: "SimulationDiverged"}, np.zeros((lik.residuals, 1)), np.eye(1), SCALES) == 0.0
+
+
+def test_the_detectability_counts_what_a_smooth_misfit_would_take_of_a_signature():
+    """signature_share: a signature smooth in frequency (a 2 % amplitude tilt) is taken up by
+    the unnamed misfit nearly as well as by the effect, so its share is most of its chi^2
+    (at least 70 %: the misfit's Occam factor over 8 coefficients costs a few nats); a
+    signature the basis cannot follow (one order at one point) keeps most of its chi^2 (share
+    below 20 % of it)."""
+    orders = np.arange(1.0, 9.0)
+    speed = np.radians(6.0) * np.array([1000.0, 1300.0, 1600.0, 1900.0, 2200.0, 2500.0])
+    y = (50.0 / orders)[None, :] * np.exp(1j * 0.1 * orders)[None, :] * np.ones((len(speed), 1))
+    sigma = np.abs(y) * 0.0025
+    rows = list(range(len(speed)))
+    lik = Likelihood(y, sigma, speed, orders)
+    basis = U.torsion_basis(lik, y, rows, np.zeros(2))
+    f = np.log(np.outer(speed, orders))
+    smooth = lik.vec(y * 0.02 * (f - f.min()) / np.ptp(f), rows)
+    spike = np.zeros_like(smooth)
+    spike[3 * len(orders) + 2] = 12.0  # 12 sigma in one real residual
+    jac = np.zeros((len(smooth), 1))
+    s_eye = np.eye(len(smooth))  # S with a parameter that does not act
+    for d, lo, hi in [(smooth, 0.7, 1.0), (spike, 0.0, 0.2)]:
+        chi2 = float(d @ d)
+        assert chi2 > 100.0
+        share = U.signature_share(d, jac, np.ones(1), 1.0, basis)
+        assert lo * chi2 <= share <= hi * chi2
+        # the same from dense densities (rounding: 1e-8 relative)
+        dense = 2.0 * (U.combined(_dense_gain(d, s_eye, basis, U.TORSION_SDS), 0.0)
+                       - U.combined(_dense_gain(0.0 * d, s_eye, basis, U.TORSION_SDS), 0.0))
+        assert share == pytest.approx(dense, rel=1e-8, abs=1e-8)
+
+
+def test_none_pays_little_for_the_option_and_gains_a_large_misfit_less_its_prior():
+    """combined: a misfit that explains nothing (gains of at most 0) costs "none" at most
+    log(1 - q) plus a little; a large one is worth its gain plus log q."""
+    q = U.MISFIT_PRIOR
+    assert U.combined(0.0, 0.0) == pytest.approx(0.0)
+    assert math.log(1.0 - q) < U.combined(-math.log(4.0), -math.log(5.0)) < 0.0
+    assert U.combined(-1e3, 0.0) == pytest.approx(math.log(1.0 - q))
+    assert U.combined(30.0, 10.0) == pytest.approx(40.0 + math.log(q), abs=1e-12)
+
+
+def test_the_ramp_direction_holds_its_branch_through_holds_and_noise():
+    """full-450-like ramp sampled every 0.5 s: 0 -> 450 N m at 50 N m/s, a 2 s hold, down to
+    -450, a hold, back to 0, with 1 N m of noise on the sampled torque. The direction is the
+    branch the torque is on, including on the holds (which stay on the branch they reached) and
+    at the first sample (which takes the first move's)."""
+    t = np.arange(0.0, 50.0, 0.5)
+    tq = np.interp(t, [0.0, 9.0, 11.0, 29.0, 31.0, 40.0, 50.0], [0.0, 450.0, 450.0, -450.0, -450.0, 0.0, 0.0])
+    want = np.where(t <= 11.0, 1.0, np.where(t <= 31.0, -1.0, 1.0))
+    noisy = tq + np.random.default_rng(5).normal(0.0, 1.0, t.size)
+    for v in (tq, noisy):
+        assert np.array_equal(U.ramp_direction(v), want)
+    assert np.array_equal(U.ramp_direction(np.zeros(5)), np.ones(5))  # never moves: +1, no division by 0
