@@ -199,6 +199,8 @@ def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
             top = max(top, ll)
         best.append(lik_r.fraction * top)
     base = best[0]
+    if not math.isfinite(base):  # no scale gives a proper covariance without the misfit: no gain is read
+        return 0.0
     terms = np.asarray(best) - base
     m = float(np.max(terms))
     return float(m + math.log(np.mean(np.exp(terms - m))))

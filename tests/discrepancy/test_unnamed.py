@@ -168,3 +168,13 @@ def test_the_ramp_direction_holds_its_branch_through_holds_and_noise():
     for v in (tq, noisy):
         assert np.array_equal(U.ramp_direction(v), want)
     assert np.array_equal(U.ramp_direction(np.zeros(5)), np.ones(5))  # never moves: +1, no division by 0
+
+
+def test_a_ramp_without_a_proper_covariance_gains_nothing(monkeypatch):
+    """No sample variance and no parameter spread: S is singular at every scale without the
+    misfit, so its log likelihood is -inf there and the gain would be nan; it reads 0."""
+    p = _long_ramp("r0")
+    lik = RampLikelihood([p], {p.id: p.windup}, {p.id: p.windup})
+    n = lik.residuals
+    monkeypatch.setattr(lik, "parts", lambda jac, cov: (np.zeros((n, 1)), np.zeros((1, 1)), np.zeros(n)))
+    assert U.ramp_gain(lik, {p.id: p.windup}, np.zeros((n, 1)), np.eye(1), SCALES) == 0.0
