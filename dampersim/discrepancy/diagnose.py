@@ -369,7 +369,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         screen_z = {n: namer.screen_evidence(screen[n], eta) for n in cands if n not in models}
         # "none" may hold a smooth misfit no library effect names (docs/discrepancy.md, Naming):
         # a candidate has to explain the data better than such a misfit does
-        unnamed = {"torsional": namer.unnamed_gain(models["none"], [], eta),
+        unnamed = {"torsional": namer.unnamed_gain(models["none"], eta),
                    "ramps": ramp_lik.unnamed if ramp_lik is not None else 0.0}
         unnamed["log_evidence"] = misfit.combined(unnamed["torsional"], unnamed["ramps"])
         log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted,

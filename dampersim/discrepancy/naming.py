@@ -428,10 +428,11 @@ class Namer:
                                np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2), nu_prec])
         return jac, prec
 
-    def unnamed_gain(self, fit, names, eta: float = 1.0) -> float:
+    def unnamed_gain(self, fit, eta: float = 1.0) -> float:
         """The torsional evidence gain of an unnamed smooth misfit beside a fitted model
         (:func:`dampersim.discrepancy.unnamed.torsion_gain`), read with its evidence's columns,
         offsets and learning rate eta."""
+        names = fit["effects"]
         jac, prec = self._evidence_columns(fit, names)
         with self.lik.using(fit["nuisance"]):
             r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)

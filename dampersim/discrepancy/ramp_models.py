@@ -47,8 +47,8 @@ def evidence(runner, system, x, models, points):
     ll, chi = {}, {}
     cov_none = models["none"]["cov"]  # the same kind of covariance as the effect models'
     pad = [np.zeros(lik_r.residuals)] * (cov_none.shape[0] - len(cols_x))  # the channels: not on the ramps
-    jacs = {"none": (np.column_stack([*cols_x, *pad]), cov_none)}
-    ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], *jacs["none"])
+    jac_none = np.column_stack([*cols_x, *pad])
+    ll["none"], chi["none"], _, _ = lik_r.predictive(runs["none"], jac_none, cov_none)
     scales, whitened = {"none": lik_r.scale}, {"none": lik_r.whitened}
     for label, fit in models.items():
         if label == "none":
@@ -60,15 +60,14 @@ def evidence(runner, system, x, models, points):
             moved = with_effect(fit["system"], name, {info(name).magnitude: m_fd})
             cols.append(lik_r.column(ramps_lik.run_ramps(runner, moved, points), runs[label], step))
         cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes, channels: not on the ramps
-        jacs[label] = (np.column_stack(cols), fit["cov"])
-        ll[label], chi[label], _, _ = lik_r.predictive(runs[label], *jacs[label])
+        ll[label], chi[label], _, _ = lik_r.predictive(runs[label], np.column_stack(cols), fit["cov"])
         scales[label], whitened[label] = lik_r.scale, lik_r.whitened
     # the model that explains the ramps best fixes their effective share (scaling every
     # model's log likelihood from here on) and the noise scale of detectability
     ll = lik_r.settle(ll, scales, whitened)
     lik_r.cols_x = cols_x
     # the unnamed smooth misfit's evidence on the ramps beside "none", read at the settled share
-    lik_r.unnamed = unnamed.ramp_gain(lik_r, runs["none"], *jacs["none"], ramps_lik.SCALES)
+    lik_r.unnamed = unnamed.ramp_gain(lik_r, runs["none"], jac_none, cov_none, ramps_lik.SCALES)
     return lik_r, runs, ll, chi
 
 

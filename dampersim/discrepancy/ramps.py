@@ -247,6 +247,25 @@ class RampLikelihood:
         "none" when every prediction failed, see :func:`ramp_reference`)."""
         return float(self.scales.get(self.reference, 1.0))
 
+    @staticmethod
+    def fit_scale(r, sig2, extra, scales=SCALES):
+        """The samples' uncertainty scale, fitted (maximum likelihood over ``scales``, at least
+        1): the best (log likelihood up to a constant, chi^2, covariance S, S^-1 r, scale) for
+        r ~ N(0, diag(sig2 scale^2) + extra); None when no scale gives a proper covariance."""
+        best = None
+        const = float(np.sum(np.log(sig2))) if np.all(sig2 > 0) else 0.0  # common to all models
+        for scale in scales:
+            s = np.diag(sig2 * scale ** 2) + extra
+            sign, logdet = np.linalg.slogdet(s)
+            if sign <= 0:
+                continue
+            sol = np.linalg.solve(s, r)
+            chi2 = float(r @ sol)
+            ll = -0.5 * chi2 - 0.5 * (logdet - const)
+            if best is None or ll > best[0]:
+                best = (ll, chi2, s, sol, scale)
+        return best
+
     def predictive(self, windups: dict, jac, cov):
         """The ramps' log likelihood given a model fitted on the torsional points, with that
         fit's parameter uncertainty carried over (linearised): the samples' residual r is
@@ -264,16 +283,7 @@ class RampLikelihood:
             return -math.inf, math.inf, None, None
         j, c, sig2 = self.parts(jac, cov)
         n = j.shape[1] - len(self.points)
-        jcj = j @ c @ j.T
-        best = None
-        for scale in SCALES:  # the samples' uncertainty scale, fitted per model (at least 1)
-            s = np.diag(sig2 * scale ** 2) + jcj
-            sol = np.linalg.solve(s, r)
-            chi2 = float(r @ sol)
-            ll = -0.5 * chi2 - 0.5 * (np.linalg.slogdet(s)[1] - float(np.sum(np.log(sig2))))
-            if best is None or ll > best[0]:
-                best = (ll, chi2, s, sol, scale)
-        ll, chi2, s, sol, self.scale = best
+        ll, chi2, s, sol, self.scale = self.fit_scale(r, sig2, j @ c @ j.T)
         self.whitened = np.linalg.solve(np.linalg.cholesky(s), r)
         ll *= self.fraction
         gain = c @ j.T

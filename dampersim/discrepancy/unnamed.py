@@ -35,6 +35,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.linalg import block_diag
+from scipy.special import logsumexp
 
 #: prior probability, within "no missing effect", that an unnamed smooth misfit is present
 MISFIT_PRIOR = 0.2
@@ -81,8 +83,12 @@ def spread_gain(r_s, btb, sds) -> float:
             terms.append(-math.inf)
             continue
         terms.append(0.5 * float(r_s @ np.linalg.solve(m, r_s)) - 0.5 * logdet)
-    top = max(terms)
-    return float(top + math.log(np.mean(np.exp(np.asarray(terms) - top))))
+    return _log_mean_exp(terms)
+
+
+def _log_mean_exp(terms) -> float:
+    """log of the mean of exp(terms) (the spreads' grid, weighted evenly)."""
+    return float(logsumexp(terms) - math.log(len(terms)))
 
 
 def torsion_basis(lik, y, rows, nuisance) -> np.ndarray:
@@ -163,12 +169,7 @@ def ramp_basis(lik_r) -> np.ndarray:
         v = torque / top if top > 0 else np.zeros_like(torque)
         leg = legendre(v, RAMP_DEGREE)
         blocks.append(np.column_stack([leg, leg * ramp_direction(torque)[:, None]]))
-    n, k = sum(b.shape[0] for b in blocks), sum(b.shape[1] for b in blocks)
-    out, i, j = np.zeros((n, k)), 0, 0
-    for b in blocks:
-        out[i:i + b.shape[0], j:j + b.shape[1]] = b
-        i, j = i + b.shape[0], j + b.shape[1]
-    return out
+    return block_diag(*blocks)
 
 
 def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
@@ -189,21 +190,11 @@ def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
     bbt = basis @ basis.T
     best = []
     for sd in (math.radians(d) for d in RAMP_SDS_DEG):
-        top = -math.inf
-        for scale in scales:
-            s = np.diag(sig2 * scale ** 2) + jcj + sd ** 2 * bbt
-            sign, logdet = np.linalg.slogdet(s)
-            if sign <= 0:
-                continue
-            ll = -0.5 * float(r @ np.linalg.solve(s, r)) - 0.5 * logdet
-            top = max(top, ll)
-        best.append(lik_r.fraction * top)
-    base = best[0]
-    if not math.isfinite(base):  # no scale gives a proper covariance without the misfit: no gain is read
+        fit = lik_r.fit_scale(r, sig2, jcj + sd ** 2 * bbt, scales)
+        best.append(-math.inf if fit is None else lik_r.fraction * fit[0])
+    if not math.isfinite(best[0]):  # no scale gives a proper covariance without the misfit: no gain is read
         return 0.0
-    terms = np.asarray(best) - base
-    m = float(np.max(terms))
-    return float(m + math.log(np.mean(np.exp(terms - m))))
+    return _log_mean_exp(np.asarray(best) - best[0])
 
 
 __all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
