@@ -32,6 +32,7 @@ table at the end, or alone with ``--summary``.
     python bench/bench_discrepancy.py --out bench.jsonl --resume            # continue it
     python bench/bench_discrepancy.py --list                                # the cases, nothing run
     python bench/bench_discrepancy.py --only pendulum_absorber --limit 1 --points 6 --record 0.6 --ramps 0
+    python bench/bench_discrepancy.py --only ool/rig_inertia/1 --out b.jsonl --misfit-inputs kept
     python bench/bench_discrepancy.py --summary bench.jsonl                 # figures of a file
     python bench/bench_discrepancy.py --summary a.jsonl b.jsonl             # ... of several together
     python bench/bench_discrepancy.py --matrix classic --only miscalibration --out classic.jsonl
@@ -173,8 +174,23 @@ def machine() -> dict:
     return {**platform(), "env": {k: os.environ[k] for k in FLOAT_PATH_ENV if k in os.environ}}
 
 
-def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, recommend: bool = True) -> dict:
-    """Synthesise the case's campaign, diagnose it, return its JSON line."""
+def inputs_file(directory, case_id: str) -> str:
+    """The file ``--misfit-inputs`` keeps a case's inputs in: its id with "/" as "__"."""
+    return os.path.join(directory, case_id.replace("/", "__") + ".npz")
+
+
+def save_misfit_inputs(path, inputs: dict) -> None:
+    """Write a diagnosis's ``misfit_inputs`` ({"torsion": {...}, "ramps": {...} or None}) as
+    one .npz, each array under "part.name" (no pickled objects; read back with
+    bench_unnamed_replay.read_inputs)."""
+    flat = {f"{part}.{k}": np.asarray(v) for part, d in inputs.items() if d is not None for k, v in d.items()}
+    np.savez_compressed(path, **flat)
+
+
+def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, recommend: bool = True,
+             inputs_dir: str | None = None) -> dict:
+    """Synthesise the case's campaign, diagnose it, return its JSON line; with ``inputs_dir``
+    keep what the unnamed misfit's gain was computed from there (:func:`inputs_file`)."""
     ids = point_ids(n_points, n_ramps)
     spec = case["spec"]
     t_start = time.perf_counter()
@@ -184,8 +200,11 @@ def run_case(case, n_points: int, record: float, n_ramps: int, workers: int, rec
                          noise_db=case["noise_db"], seed=case["seed"], updates=dict(spec["updates"]) or None,
                          points=ids, record=record, workers=workers, daq=case["daq"])
         t0 = time.perf_counter()
-        diag = jsonable(diagnose(read_campaign(camp), workers=workers, recommend=recommend).to_json())
+        result = diagnose(read_campaign(camp), workers=workers, recommend=recommend)
         wall = time.perf_counter() - t0
+        diag = jsonable(result.to_json())
+        if inputs_dir is not None and result.misfit_inputs:
+            save_misfit_inputs(inputs_file(inputs_dir, case["id"]), result.misfit_inputs)
     truth = dict(doc)
     truth.update({"description": spec["description"], "updates": spec["updates"], "level": case["level"]})
     row = {k: case[k] for k in ("id", "kind", "group", "level", "seed", "perturb", "noise_db")}
@@ -260,7 +279,12 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-recommend", action="store_true",
                     help="skip the next-test design (its runs do not change any figure of the summary)")
+    ap.add_argument("--misfit-inputs", metavar="DIR",
+                    help="keep each case's unnamed-misfit inputs in DIR (one .npz per case) for "
+                         "bench/bench_unnamed_replay.py")
     a = ap.parse_args(argv)
+    if a.misfit_inputs:
+        os.makedirs(a.misfit_inputs, exist_ok=True)
     if a.summary:
         print(summary_table(summary(read_files(ap, a.summary))))
         return 0
@@ -284,7 +308,7 @@ def main(argv=None):
     print(f"{len(todo)} cases to run ({len(cases) - len(todo)} skipped)", flush=True)
     for c in todo:
         try:
-            r = run_case(c, a.points, a.record, ramps, a.workers, not a.no_recommend)
+            r = run_case(c, a.points, a.record, ramps, a.workers, not a.no_recommend, a.misfit_inputs)
         except Exception as exc:  # noqa: BLE001 - one failed case must not end the run
             r = {"id": c["id"], "kind": c["kind"], "error": f"{type(exc).__name__}: {exc}",
                  "traceback": traceback.format_exc(limit=5)}

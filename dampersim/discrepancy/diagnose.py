@@ -369,7 +369,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         screen_z = {n: namer.screen_evidence(screen[n], eta) for n in cands if n not in models}
         # "none" may hold a smooth misfit no library effect names (docs/discrepancy.md, Naming):
         # a candidate has to explain the data better than such a misfit does
-        unnamed = {"torsional": namer.unnamed_gain(models["none"], eta),
+        misfit_inputs = {"torsion": namer.unnamed_inputs(models["none"], eta),
+                         "ramps": ramp_lik.unnamed_inputs if ramp_lik is not None else None}
+        unnamed = {"torsional": misfit.torsion_gain(**misfit_inputs["torsion"]),
                    "ramps": ramp_lik.unnamed if ramp_lik is not None else 0.0}
         unnamed["log_evidence"] = misfit.combined(unnamed["torsional"], unnamed["ramps"])
         log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted,
@@ -452,6 +454,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                  "after": np.abs(y_aug[i] if verdict == "missing_effect" else y_cal[i]).tolist()} for i in shown],
         residuals={k: {ids[i]: v[i].tolist() for i in shown} for k, v in res.items()},
         ramps=ramps, ramp_traces=traces, problems=problems, simulations=sims, system=system_out,
+        misfit_inputs=misfit_inputs,
         # every library effect has a key: those not considered have prior and posterior 0
         posterior={**dict.fromkeys(NAMES, 0.0), **post}, effects=effects_out,
         detectability={**dict.fromkeys(NAMES), **detect}, recommended_points=recs,

@@ -428,16 +428,23 @@ class Namer:
                                np.full(len(cols) - len(names), 1.0 / selection.SHAPE_PRIOR_SD ** 2), nu_prec])
         return jac, prec
 
-    def unnamed_gain(self, fit, eta: float = 1.0) -> float:
-        """The torsional evidence gain of an unnamed smooth misfit beside a fitted model
-        (:func:`dampersim.discrepancy.unnamed.torsion_gain`), read with its evidence's columns,
-        offsets and learning rate eta."""
+    def unnamed_inputs(self, fit, eta: float = 1.0) -> dict:
+        """What the torsional evidence gain of an unnamed smooth misfit beside a fitted model is
+        computed from, as :func:`dampersim.discrepancy.unnamed.torsion_gain`'s arguments: the
+        standardised training residual, the Jacobian and prior precisions of the model's
+        evidence columns, the parameters' offsets from their prior centres, the learning rate
+        eta and the misfit's basis (:func:`~dampersim.discrepancy.unnamed.torsion_basis`)."""
         names = fit["effects"]
         jac, prec = self._evidence_columns(fit, names)
         with self.lik.using(fit["nuisance"]):
             r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
-        basis = unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])
-        return unnamed.torsion_gain(r, jac, prec, self._offset(fit, names), eta, basis)
+        return {"r_fit": r, "jac": jac, "prec": prec, "offset": self._offset(fit, names), "eta": float(eta),
+                "basis": unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])}
+
+    def unnamed_gain(self, fit, eta: float = 1.0) -> float:
+        """The torsional evidence gain of an unnamed smooth misfit beside a fitted model
+        (:func:`dampersim.discrepancy.unnamed.torsion_gain` of :meth:`unnamed_inputs`)."""
+        return unnamed.torsion_gain(**self.unnamed_inputs(fit, eta))
 
     @staticmethod
     def _offset(fit, names) -> np.ndarray:

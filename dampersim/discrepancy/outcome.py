@@ -54,6 +54,9 @@ class Diagnosis:
     recommended_points: list = field(default_factory=list)  # [{kind, speed_rpm, mean_torque_nm, orders, protocol, reason}]
     outliers: list = field(default_factory=list)  # point ids the robust loss down-weights
     likelihood: dict = field(default_factory=dict)  # reduced chi^2, nuisance, log evidence, model priors
+    #: what likelihood["unnamed_misfit"] is computed from, as arrays (not in the JSON):
+    #: {"torsion": unnamed.torsion_gain's arguments, "ramps": unnamed.ramp_inputs or None}
+    misfit_inputs: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {

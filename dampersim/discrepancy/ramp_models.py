@@ -32,10 +32,12 @@ def evidence(runner, system, x, models, points):
     """Each model's ramp prediction: (RampLikelihood, {model: windups}, {model: log
     likelihood}, {model: chi^2}); the RampLikelihood's ``scales`` holds each model's fitted
     uncertainty scale, its ``unnamed`` the ramps' evidence gain of an unnamed smooth misfit
-    beside "none" (:func:`dampersim.discrepancy.unnamed.ramp_gain`). The ramps' sensitivities
-    to the calibration factors are run once at the calibrated model (kept as the
-    RampLikelihood's ``cols_x``), to each effect's magnitude once per fitted model; shape
-    parameters are not carried over."""
+    beside "none" (:func:`dampersim.discrepancy.unnamed.ramp_gain_of`) and its
+    ``unnamed_inputs`` what that gain is computed from
+    (:func:`~dampersim.discrepancy.unnamed.ramp_inputs`). The ramps' sensitivities to the
+    calibration factors are run once at the calibrated model (kept as the RampLikelihood's
+    ``cols_x``), to each effect's magnitude once per fitted model; shape parameters are not
+    carried over."""
     h = fitting.CAL_DERIVATIVE_STEPS[0]
     lik_r, runs = ramps_lik.ramp_likelihood(runner, calibrated_system(system, x), points)
     runs = {"none": runs}
@@ -67,7 +69,8 @@ def evidence(runner, system, x, models, points):
     ll = lik_r.settle(ll, scales, whitened)
     lik_r.cols_x = cols_x
     # the unnamed smooth misfit's evidence on the ramps beside "none", read at the settled share
-    lik_r.unnamed = unnamed.ramp_gain(lik_r, runs["none"], jac_none, cov_none, ramps_lik.SCALES)
+    lik_r.unnamed_inputs = unnamed.ramp_inputs(lik_r, runs["none"], jac_none, cov_none)
+    lik_r.unnamed = unnamed.ramp_gain_of(lik_r.unnamed_inputs, ramps_lik.SCALES)
     return lik_r, runs, ll, chi
 
 

@@ -38,6 +38,8 @@ import numpy as np
 from scipy.linalg import block_diag
 from scipy.special import logsumexp
 
+from dampersim.discrepancy.ramps import RampLikelihood
+
 #: prior probability, within "no missing effect", that an unnamed smooth misfit is present
 MISFIT_PRIOR = 0.2
 #: highest Legendre degree in log frequency of the torsional misfit (amplitude and phase each)
@@ -109,12 +111,13 @@ def torsion_basis(lik, y, rows, nuisance) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def torsion_gain(r_fit, jac, prec, offset, eta: float, basis) -> float:
+def torsion_gain(r_fit, jac, prec, offset, eta: float, basis, sds=TORSION_SDS) -> float:
     """The torsional log evidence gain D of the unnamed misfit for a model fitted with
     standardised residual ``r_fit``, Jacobian ``jac`` of all its fitted parameters, their prior
     precisions ``prec``, their offsets from the prior centres ``offset`` and the likelihood's
     learning rate eta (the standardised noise variance is 1 / eta). Linear Gaussian: the
-    residual at the prior centre is r_fit + J offset, with covariance S = I / eta + J P^-1 J'."""
+    residual at the prior centre is r_fit + J offset, with covariance S = I / eta + J P^-1 J'.
+    sds: the coefficients' prior spreads (relative), weighted evenly."""
     jac = np.asarray(jac, dtype=float)
     r0 = np.asarray(r_fit, dtype=float) + jac @ np.asarray(offset, dtype=float)
     a = eta * (jac.T @ jac) + np.diag(np.asarray(prec, dtype=float))
@@ -123,7 +126,7 @@ def torsion_gain(r_fit, jac, prec, offset, eta: float, basis) -> float:
         return eta * v - eta ** 2 * (jac @ np.linalg.solve(a, jac.T @ v))
 
     sb = s_inv(basis)
-    return spread_gain(sb.T @ r0, basis.T @ sb, TORSION_SDS)
+    return spread_gain(sb.T @ r0, basis.T @ sb, sds)
 
 
 def signature_share(d, jac, prec, eta: float, basis) -> float:
@@ -172,31 +175,52 @@ def ramp_basis(lik_r) -> np.ndarray:
     return block_diag(*blocks)
 
 
-def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
-    """The ramps' log evidence gain D of the unnamed misfit beside the calibrated model's
-    prediction (its windups, sensitivities ``jac`` and parameter covariance ``cov``, as
-    :meth:`RampLikelihood.predictive` takes them): for every spread the samples' uncertainty
-    scale is fitted again over ``scales``, and the log likelihoods are tempered by the ramps'
-    effective share (``lik_r.fraction``) as the ramps' own term is. 0 without samples and for
-    a failed run (whose ramp term is already -inf)."""
+def ramp_inputs(lik_r, windups, jac, cov) -> dict | None:
+    """What the ramps' misfit gain is computed from (:func:`ramp_gain_of`), as arrays a
+    reader can keep and recompute it with: the compared samples' residual (measured minus
+    simulated) [rad], the sensitivities with the ramps' angle offsets appended
+    ``sensitivity`` [rad per unit parameter], the parameters' covariance ``covariance``, the
+    samples' variances ``sample_variance`` [rad^2] (as :meth:`RampLikelihood.parts` gives
+    them), the basis :func:`ramp_basis` [rad per unit coefficient] and the samples'
+    effective share ``share``. None without samples and for a failed run."""
     if not lik_r.residuals:
-        return 0.0
+        return None
     r = lik_r.residual(windups)
     if r is None:
-        return 0.0
+        return None
     j, c, sig2 = lik_r.parts(jac, cov)
+    return {"residual": r, "sensitivity": j, "covariance": c, "sample_variance": sig2,
+            "basis": ramp_basis(lik_r), "share": float(lik_r.fraction)}
+
+
+def ramp_gain_of(inputs, scales, sds_deg=RAMP_SDS_DEG) -> float:
+    """The ramps' log evidence gain D of the unnamed misfit from :func:`ramp_inputs`: for
+    every spread of ``sds_deg`` [deg] the samples' uncertainty scale is fitted again over
+    ``scales``, and the log likelihoods are tempered by the effective share, as the ramps'
+    own term is. 0 for no inputs (no samples, a failed run: its ramp term is already -inf)."""
+    if inputs is None:
+        return 0.0
+    j, c = inputs["sensitivity"], inputs["covariance"]
     jcj = j @ c @ j.T
-    basis = ramp_basis(lik_r)
+    basis = inputs["basis"]
     bbt = basis @ basis.T
     best = []
-    for sd in (math.radians(d) for d in RAMP_SDS_DEG):
-        fit = lik_r.fit_scale(r, sig2, jcj + sd ** 2 * bbt, scales)
-        best.append(-math.inf if fit is None else lik_r.fraction * fit[0])
+    for sd in (math.radians(d) for d in sds_deg):
+        fit = RampLikelihood.fit_scale(inputs["residual"], inputs["sample_variance"], jcj + sd ** 2 * bbt, scales)
+        best.append(-math.inf if fit is None else inputs["share"] * fit[0])
     if not math.isfinite(best[0]):  # no scale gives a proper covariance without the misfit: no gain is read
         return 0.0
     return _log_mean_exp(np.asarray(best) - best[0])
 
 
+def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
+    """The ramps' log evidence gain D of the unnamed misfit beside the calibrated model's
+    prediction (its windups, sensitivities ``jac`` and parameter covariance ``cov``, as
+    :meth:`RampLikelihood.predictive` takes them): :func:`ramp_gain_of` of
+    :func:`ramp_inputs`, read at ``lik_r``'s effective share."""
+    return ramp_gain_of(ramp_inputs(lik_r, windups, jac, cov), scales)
+
+
 __all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
            "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share", "ramp_direction",
-           "ramp_basis", "ramp_gain"]
+           "ramp_basis", "ramp_inputs", "ramp_gain_of", "ramp_gain"]
