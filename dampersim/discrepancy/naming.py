@@ -472,11 +472,12 @@ class Namer:
         where the chi^2 improvement it would bring, after the calibration and the channels'
         gain and delay have absorbed what they can (its signature projected off those
         directions under their priors), minus what an unnamed smooth misfit beside "none"
-        would take of it (:mod:`dampersim.discrepancy.unnamed`; torsional points only) and its
-        magnitude prior's cost, reaches what a
+        would take of it (:func:`dampersim.discrepancy.unnamed.signature_share`, on the
+        torsional points and the ramps) and its magnitude prior's cost, reaches what a
         posterior of DETECTION_POSTERIOR against "none" needs
-        (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): the
-        chi^2 the ramps would add at magnitude m (None: torsional points only); eta: the
+        (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): (the
+        chi^2 the ramps would add at magnitude m, the unnamed misfit's ramp D at that
+        signature and at none) (None: torsional points only); eta: the
         likelihood's learning rate, which scales the torsional chi^2 (a threshold read against
         the misfit the calibrated model really leaves); jac: the calibrated model's factor
         Jacobian (default the calibration's; :meth:`jac_of` of "none")."""
@@ -500,9 +501,9 @@ class Namer:
                 d = self.w(y - y_cal)
             proj = absorb.T @ d
             mags.append(m)
-            ramps = ramp_gain(name, m) if ramp_gain is not None else 0.0
+            ramps, *ramp_misfit = ramp_gain(name, m) if ramp_gain is not None else (0.0, 0.0, 0.0)
             torsional = eta * float(d @ d) - eta ** 2 * float(proj @ np.linalg.solve(a, proj))
-            share = unnamed.signature_share(d, absorb, prec, eta, basis)
+            share = unnamed.signature_share(d, absorb, prec, eta, basis, ramp_misfit)
             gains.append(torsional - share + ramps - self._magnitude_prior(name, m))
         if len(mags) < 2:
             return None

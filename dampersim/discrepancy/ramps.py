@@ -215,16 +215,21 @@ class RampLikelihood:
         j, c, sig2 = self.parts(jac, cov)
         return np.diag(sig2 * scale ** 2) + j @ c @ j.T
 
+    def signature(self, windups: dict, base: dict):
+        """An effect's ramp signature: its compared samples minus the base model's [rad],
+        stacked (None when a run failed or there are no samples)."""
+        a, b = self._model(windups), self._model(base)
+        return None if not self.residuals or a is None or b is None else a - b
+
     def signature_gain(self, windups: dict, base: dict, jac, cov, scale: float | None = None) -> float:
         """The chi^2 an effect's ramp signature (windups minus the base model's) would add
         against a model with parameter covariance ``cov`` through sensitivities ``jac`` and
         uncertainty scale ``scale`` (default: ``noise_scale``, set by :meth:`settle`): what
         the calibration and the offsets cannot absorb (0 when a run failed or there are no
         samples)."""
-        a, b = self._model(windups), self._model(base)
-        if not self.residuals or a is None or b is None:
+        d = self.signature(windups, base)
+        if d is None:
             return 0.0
-        d = a - b
         scale = self.noise_scale if scale is None else scale
         return self.fraction * float(d @ np.linalg.solve(self._covariance(jac, cov, scale), d))
 

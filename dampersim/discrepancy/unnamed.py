@@ -129,16 +129,18 @@ def torsion_gain(r_fit, jac, prec, offset, eta: float, basis, sds=TORSION_SDS) -
     return spread_gain(sb.T @ r0, basis.T @ sb, sds)
 
 
-def signature_share(d, jac, prec, eta: float, basis) -> float:
-    """What "none" gains from the unnamed misfit when its torsional residual is an effect's
-    standardised signature d, as chi^2: twice :func:`combined` of :func:`torsion_gain` at d
-    over that at no signature (the calibration at its prior centre, the noise left out, as
-    the detectability's chi^2 leaves it out; the ramps left out). Near d's own chi^2
-    improvement (after the calibration) for a strong signature smooth in frequency, near 0
-    for one the basis cannot follow."""
+def signature_share(d, jac, prec, eta: float, basis, ramps=(0.0, 0.0)) -> float:
+    """What "none" gains from the unnamed misfit when its residual is an effect's signature,
+    as chi^2: twice :func:`combined` at the signature over that at no signature (the
+    calibration at its prior centre, the noise left out, as the detectability's chi^2 leaves
+    it out). Torsional: :func:`torsion_gain` at the standardised signature d. ramps: the
+    ramps' D at the effect's ramp signature and at none (:func:`ramp_signature_gain`; 0 and 0
+    for an effect the ramps are not read for). Near the signature's own chi^2 improvement
+    (after the calibration) for a strong signature the basis follows, near 0 for one it
+    cannot follow."""
     zero = np.zeros(np.asarray(jac).shape[1])
-    at_d = combined(torsion_gain(d, jac, prec, zero, eta, basis), 0.0)
-    return 2.0 * (at_d - combined(torsion_gain(np.zeros_like(d), jac, prec, zero, eta, basis), 0.0))
+    at_d = combined(torsion_gain(d, jac, prec, zero, eta, basis), ramps[0])
+    return 2.0 * (at_d - combined(torsion_gain(np.zeros_like(d), jac, prec, zero, eta, basis), ramps[1]))
 
 
 def ramp_direction(v) -> np.ndarray:
@@ -213,6 +215,27 @@ def ramp_gain_of(inputs, scales, sds_deg=RAMP_SDS_DEG) -> float:
     return _log_mean_exp(np.asarray(best) - best[0])
 
 
+def ramp_signature_gain(inputs, d, scale: float, sds_deg=RAMP_SDS_DEG) -> float:
+    """The ramps' D of the unnamed misfit when the compared samples' residual is ``d`` [rad]
+    (an effect's ramp signature; zeros for none), from "none"'s :func:`ramp_inputs`, at the
+    fixed uncertainty scale ``scale`` that detectability reads the ramps against
+    (:attr:`RampLikelihood.noise_scale`: a signature must not buy itself a wider noise),
+    tempered by the effective share. 0 for no inputs."""
+    if inputs is None:
+        return 0.0
+    d = np.asarray(d, dtype=float)
+    j, c, basis = inputs["sensitivity"], inputs["covariance"], inputs["basis"]
+    base = np.diag(inputs["sample_variance"] * scale ** 2) + j @ c @ j.T
+    terms = []
+    for sd in (math.radians(v) for v in sds_deg):
+        cov = base + sd ** 2 * basis @ basis.T
+        sign, logdet = np.linalg.slogdet(cov)
+        terms.append(-math.inf if sign <= 0 else -0.5 * float(d @ np.linalg.solve(cov, d)) - 0.5 * logdet)
+    if not math.isfinite(terms[0]):
+        return 0.0
+    return _log_mean_exp(inputs["share"] * (np.asarray(terms) - terms[0]))
+
+
 def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
     """The ramps' log evidence gain D of the unnamed misfit beside the calibrated model's
     prediction (its windups, sensitivities ``jac`` and parameter covariance ``cov``, as
@@ -223,4 +246,4 @@ def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
 
 __all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
            "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share", "ramp_direction",
-           "ramp_basis", "ramp_inputs", "ramp_gain_of", "ramp_gain"]
+           "ramp_basis", "ramp_inputs", "ramp_gain_of", "ramp_signature_gain", "ramp_gain"]

@@ -94,6 +94,19 @@ def campaign(points, name: str = "fake") -> Campaign:
     return Campaign(path=name, name=name, points=list(points), problems=[], rows=len(points))
 
 
+def ramp_windup(system, p) -> np.ndarray:
+    """The stand-in's windup [rad] over a ramp point's record: the input torque over a rate
+    that scales with the outer spring rate (3000 N m/rad at the estimate, as :func:`ramp`'s
+    measured windup), and a slipping clutch opening a loop of 0.001 rad x 540 N m / capacity
+    (half of it up while loading, down while unloading)."""
+    k = 3000.0 * system.outer.spring.stiffness / BASE.outer.spring.stiffness
+    w = np.asarray(p.input_torque, dtype=float) / k
+    fx = system.effects
+    if fx.clutch_slip.enabled:
+        w = w + 0.5e-3 * 540.0 / fx.clutch_slip.capacity * np.sign(np.gradient(p.input_torque))
+    return w
+
+
 def fake_model(fail=None):
     """A replacement for ``drive.simulate_point``. fail(system, point) -> None, "raise"
     (the integration diverges) or "nan" (the run returns non-finite amplitudes)."""
@@ -104,6 +117,8 @@ def fake_model(fail=None):
         if how == "nan":
             return {"orders": np.full(len(drive.ORDERS), np.nan), "coefficients": np.full(len(drive.ORDERS), np.nan + 0j),
                     "halves": np.full((2, len(drive.ORDERS)), np.nan + 0j)}
+        if p.kind == "ramp":
+            return {"torque": p.input_torque, "windup": ramp_windup(system, p)}
         amps = amplitudes(system, p.speed_rpm, p.mean_torque_nm)
         # read like the measured output: the same tracked operator on the same record
         out = dataclasses.replace(p, output_torque=signal(p.time, p.speed_rpm, p.mean_torque_nm, amps))

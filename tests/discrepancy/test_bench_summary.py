@@ -212,7 +212,7 @@ def test_the_hard_matrix(bench):
 def test_each_case_is_written_at_once_and_resume_skips_it(bench, tmp_path, monkeypatch, capsys):
     ran = []
 
-    def fake_run(case, n_points, record, ramps, workers, recommend):
+    def fake_run(case, n_points, record, ramps, workers, recommend, inputs_dir=None):
         ran.append(case["id"])
         if len(ran) == 2:
             raise RuntimeError("diverged")

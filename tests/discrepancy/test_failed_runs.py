@@ -170,5 +170,9 @@ def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
     reported = d.likelihood["unnamed_misfit"]
     assert seen["unnamed"] == reported["log_evidence"] == unnamed.combined(reported["torsional"], reported["ramps"])
     assert reported["ramps"] == 0.0  # no ramp in this campaign
+    # what that term was computed from comes with the diagnosis and gives it back (the same
+    # arithmetic on the same arrays: exact), so a reader can recompute it under other settings
+    assert unnamed.torsion_gain(**d.misfit_inputs["torsion"]) == reported["torsional"]
+    assert d.misfit_inputs["ramps"] is None
     expect = selection.posterior(seen["log_z"], selection.model_priors(["clutch_slip", "turbine_drag"], seen["pairs"]))
     assert {k: d.posterior[k] for k in expect} == pytest.approx(expect)

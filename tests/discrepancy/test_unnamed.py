@@ -178,3 +178,82 @@ def test_a_ramp_without_a_proper_covariance_gains_nothing(monkeypatch):
     n = lik.residuals
     monkeypatch.setattr(lik, "parts", lambda jac, cov: (np.zeros((n, 1)), np.zeros((1, 1)), np.zeros(n)))
     assert U.ramp_gain(lik, {p.id: p.windup}, np.zeros((n, 1)), np.eye(1), SCALES) == 0.0
+
+
+def test_the_ramp_signature_gain_is_the_fixed_scale_evidence_ratio():
+    """ramp_signature_gain against scipy's Gaussian densities at the fixed scale, tempered by the
+    effective share (both exact: 1e-7 relative is rounding); none's signature (zeros) gains
+    at most 0, a loop-width signature much more."""
+    from scipy.stats import multivariate_normal
+
+    p = _long_ramp("r0")
+    model = {p.id: p.windup}
+    lik = RampLikelihood([p], model, model)
+    lik.fraction = 0.4
+    inputs = U.ramp_inputs(lik, model, np.zeros((lik.residuals, 1)), np.eye(1))
+    width = np.where(np.gradient(p.input_torque) > 0, -1.0, 1.0)[lik.idx[p.id]] * math.radians(0.3)
+    scale = 2.0
+    j, c, sig2, basis = (inputs[k] for k in ("sensitivity", "covariance", "sample_variance", "basis"))
+    gains = []
+    for d in (np.zeros_like(width), width):
+        t = np.array([multivariate_normal(np.zeros(len(d)), np.diag(sig2 * scale ** 2) + j @ c @ j.T
+                                          + sd ** 2 * basis @ basis.T).logpdf(d) for sd in np.radians(U.RAMP_SDS_DEG)])
+        t = lik.fraction * (t - t[0])
+        want = float(t.max() + math.log(np.mean(np.exp(t - t.max()))))
+        got = U.ramp_signature_gain(inputs, d, scale)
+        assert got == pytest.approx(want, rel=1e-7, abs=1e-7)
+        gains.append(got)
+    assert gains[0] <= 0.0 < 5.0 < gains[1]
+    assert U.ramp_signature_gain(None, width, scale) == 0.0  # no ramp samples: no misfit term
+
+
+def test_the_detectability_share_counts_the_ramps_with_the_torsional_points():
+    """signature_share with the ramps' D at the signature and at none: a ramp signature the
+    basis follows adds most of its own evidence to the share; (0, 0), the default, is the
+    torsional points alone; the share is the joint one, not a sum of two (combined is not
+    additive)."""
+    rng = np.random.default_rng(4)
+    n = 40
+    jac, basis = rng.normal(size=(n, 2)), rng.normal(size=(n, 8))
+    d = 0.01 * rng.normal(size=n)  # a torsional signature too small to matter
+    prec = np.ones(2)
+    alone = U.signature_share(d, jac, prec, 1.0, basis)
+    assert U.signature_share(d, jac, prec, 1.0, basis, (0.0, 0.0)) == alone
+    with_ramps = U.signature_share(d, jac, prec, 1.0, basis, (20.0, -1.0))
+    zero = np.zeros(2)
+    t_d, t_0 = (U.torsion_gain(v, jac, prec, zero, 1.0, basis) for v in (d, 0 * d))
+    assert with_ramps == pytest.approx(2.0 * (U.combined(t_d, 20.0) - U.combined(t_0, -1.0)), rel=1e-12)
+    # the ramps' D of 20 nats over -1 at none: about 2 x (20 + log q - log(1 - q)) = 37 of chi^2,
+    # where the torsional signature alone gives "none" next to nothing
+    assert with_ramps > 30.0 and abs(alone) < 1.0
+    split = alone + 2.0 * (U.combined(0.0, 20.0) - U.combined(0.0, -1.0))
+    assert abs(with_ramps - split) > 0.1  # joint, not the sum of two separate shares
+
+
+def test_a_diagnosis_with_a_ramp_keeps_the_misfit_inputs_and_reads_the_ramps_in_the_detectability(monkeypatch):
+    """The stand-in rig with one ramp (tests/discrepancy/fake_rig.py: a slipping clutch opens a
+    loop there; turbine drag does not show in ramps): the kept ramp inputs give back the
+    reported ramp gain, and the detectability's share reads the ramps' misfit at the clutch's
+    ramp signature (a gain above that at none: the loop is what the basis's direction term
+    expresses) and not for turbine drag, which the ramps are not read for."""
+    from dampersim.discrepancy import drive
+    from dampersim.discrepancy.diagnose import diagnose
+
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model(None))
+    seen = []
+    real = U.signature_share
+
+    def spy(d, jac, prec, eta, basis, ramps=(0.0, 0.0)):
+        seen.append(tuple(ramps))
+        return real(d, jac, prec, eta, basis, ramps)
+
+    monkeypatch.setattr(U, "signature_share", spy)
+    camp = F.campaign([F.point(*p) for p in F.POINTS] + [F.ramp("r0")])
+    d = diagnose(camp, workers=1, candidates=["clutch_slip", "turbine_drag"], recommend=False)
+    kept = d.misfit_inputs["ramps"]
+    assert kept is not None and U.ramp_gain_of(kept, SCALES) == d.likelihood["unnamed_misfit"]["ramps"]
+    # two magnitudes tried per candidate beyond the typical one: clutch first, then drag
+    assert len(seen) % 2 == 0
+    clutch, drag = seen[:len(seen) // 2], seen[len(seen) // 2:]
+    assert clutch and all(at > none for at, none in clutch)
+    assert drag and all(r == (0.0, 0.0) for r in drag)

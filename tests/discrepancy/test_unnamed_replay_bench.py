@@ -1,0 +1,107 @@
+"""bench/bench_unnamed_replay.py and the kept inputs of bench_discrepancy --misfit-inputs:
+written and read back exactly, recomputed to the run's gains, and a mismatch reported (no
+diagnosis is run: the inputs are built by hand)."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import selection
+from dampersim.discrepancy import unnamed as U
+from dampersim.discrepancy.ramps import SCALES, RampLikelihood
+from tests.discrepancy import fake_rig as F
+from tests.discrepancy.benches import load_bench
+
+
+@pytest.fixture(scope="module")
+def replay():
+    return load_bench("bench_unnamed_replay")
+
+
+def _inputs():
+    """Torsional inputs with a smooth misfit in the residual, and one 3 s ramp whose
+    unloading branch lies 0.2 deg off (a loop the model lacks) with a little noise."""
+    rng = np.random.default_rng(7)
+    n, p, k = 48, 4, 8
+    jac, basis = rng.normal(size=(n, p)), rng.normal(size=(n, k))
+    torsion = {"r_fit": rng.normal(size=n) + basis @ rng.normal(size=k) * 0.5, "jac": jac,
+               "prec": rng.uniform(0.5, 2.0, p), "offset": 0.1 * rng.normal(size=p), "eta": 0.4, "basis": basis}
+    pt = F.ramp("r0")
+    model = {pt.id: pt.windup}
+    loop = np.where(np.gradient(pt.input_torque) > 0, 0.0, math.radians(0.2))
+    meas = dataclasses.replace(pt, windup=pt.windup + loop + rng.normal(0.0, math.radians(0.02), pt.windup.size))
+    lik = RampLikelihood([meas], model, model)
+    lik.fraction = 0.5
+    ramps = U.ramp_inputs(lik, model, np.zeros((lik.residuals, 1)), np.eye(1))
+    return {"torsion": torsion, "ramps": ramps}
+
+
+def _row(inputs, case_id="ool/rig_inertia/1"):
+    """A JSON line as bench_discrepancy writes it, with the gains the inputs give."""
+    d_t = U.torsion_gain(**inputs["torsion"])
+    d_r = U.ramp_gain_of(inputs["ramps"], SCALES)
+    gain = U.combined(d_t, d_r)
+    log_z = {"none": -100.0 + gain, "transducer_bandwidth": -97.0, "clutch_slip": None}
+    priors = {"none": 0.5, "transducer_bandwidth": 0.25, "clutch_slip": 0.25}
+    return {"id": case_id, "likelihood": {"unnamed_misfit": {"torsional": d_t, "ramps": d_r, "log_evidence": gain},
+                                          "log_evidence": log_z, "model_prior": priors}}
+
+
+def test_kept_inputs_come_back_exactly(tmp_path, replay):
+    inputs = _inputs()
+    assert inputs["ramps"] is not None and inputs["ramps"]["share"] == 0.5
+    path = replay.B.inputs_file(str(tmp_path), "ool/rig_inertia/1")
+    assert path.endswith("ool__rig_inertia__1.npz")
+    replay.B.save_misfit_inputs(path, inputs)
+    back = replay.read_inputs(path)
+    for part in ("torsion", "ramps"):
+        assert set(back[part]) == set(inputs[part])
+        for key, v in inputs[part].items():
+            assert np.array_equal(np.asarray(back[part][key]), np.asarray(v)), (part, key)
+    assert isinstance(back["torsion"]["eta"], float)
+    # a campaign without ramps keeps the torsional part only, and reads back as None
+    replay.B.save_misfit_inputs(path, {"torsion": inputs["torsion"], "ramps": None})
+    assert replay.read_inputs(path)["ramps"] is None
+
+
+def test_the_replay_recomputes_the_run_and_reports_a_mismatch(tmp_path, replay, capsys):
+    inputs = _inputs()
+    row = _row(inputs)
+    # the run's own settings give back the run's posterior; the misfit is real here, so reading it
+    # untempered gains more than at the run's learning rate of 0.4
+    assert replay.posterior_with(row, row["likelihood"]["unnamed_misfit"]["log_evidence"]) == pytest.approx(
+        selection.posterior({"none": -100.0 + row["likelihood"]["unnamed_misfit"]["log_evidence"],
+                             "transducer_bandwidth": -97.0, "clutch_slip": -math.inf}, row["likelihood"]["model_prior"]))
+    assert replay.gains(inputs, eta=1.0)[0] > replay.gains(inputs)[0] > 0.0
+    lines, ok = replay.replay(row, inputs, etas=[1.0], grids=[(0.0, 0.1)])
+    assert ok and "(agrees)" in lines[2] and len(lines) == 4 + 3
+    # after >= taken >= 0: a projection takes part of what is left, never more
+    after, taken = replay.basis_take(inputs["torsion"])
+    assert after >= taken > 0.0
+    # through main: agreement exits 0; a run whose recorded gain differs by 1e-6 nats exits 1
+    replay.B.save_misfit_inputs(replay.B.inputs_file(str(tmp_path), row["id"]), inputs)
+    results = tmp_path / "r.jsonl"
+    results.write_text(json.dumps(row) + "\n")
+    assert replay.main(["--inputs", str(tmp_path), "--results", str(results)]) == 0
+    row["likelihood"]["unnamed_misfit"]["torsional"] += 1e-6
+    results.write_text(json.dumps(row) + "\n")
+    assert replay.main(["--inputs", str(tmp_path), "--results", str(results)]) == 1
+    assert "DISAGREES" in capsys.readouterr().out
+    # no kept inputs for any case: said, exit 1 (never an empty success); no such directory: refused
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert replay.main(["--inputs", str(empty), "--results", str(results)]) == 1
+    assert "has kept inputs" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        replay.main(["--inputs", str(tmp_path / "missing"), "--results", str(results)])
+    assert exc.value.code == 2
+
+
+def test_bad_variants_are_refused(replay, tmp_path):
+    for args in (["--eta", "0"], ["--eta", "1.5"], ["--torsion-sds", "0,-0.1"], ["--torsion-sds", "a"]):
+        with pytest.raises(SystemExit) as exc:
+            replay.main(["--inputs", str(tmp_path), "--results", str(tmp_path / "r.jsonl"), *args])
+        assert exc.value.code == 2
