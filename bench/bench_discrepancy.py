@@ -283,8 +283,6 @@ def main(argv=None):
                     help="keep each case's unnamed-misfit inputs in DIR (one .npz per case) for "
                          "bench/bench_unnamed_replay.py")
     a = ap.parse_args(argv)
-    if a.misfit_inputs:
-        os.makedirs(a.misfit_inputs, exist_ok=True)
     if a.summary:
         print(summary_table(summary(read_files(ap, a.summary))))
         return 0
@@ -305,6 +303,8 @@ def main(argv=None):
         ap.error(f"--out {a.out} already holds {len(done)} finished cases: pass --resume to continue it, "
                  "or name another file")
     todo = [c for c in cases if c["id"] not in done][:a.limit]
+    if a.misfit_inputs:
+        os.makedirs(a.misfit_inputs, exist_ok=True)
     print(f"{len(todo)} cases to run ({len(cases) - len(todo)} skipped)", flush=True)
     for c in todo:
         try:

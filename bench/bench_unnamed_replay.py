@@ -11,7 +11,8 @@ script reads those files beside the run's JSON lines and prints, per case:
 
 * the run's D_torsional, D_ramps and log evidence gain, and the same recomputed from the
   kept inputs: they must agree (to 1e-9 nats; the same arithmetic on the same arrays), or
-  the script reports the case and exits with status 1 (the kept inputs are incomplete);
+  the script reports the case and exits with status 1 (the inputs are not those of that
+  run: incomplete, stale, or from another run of the same case);
 * what the torsional basis takes of the residual: the chi^2 left after the calibration and
   the channels' gain and delay (the residual projected off their columns, least squares
   without their priors), the part of it the basis takes up as well, and that part as the
@@ -24,16 +25,17 @@ script reads those files beside the run's JSON lines and prints, per case:
 
     python bench/bench_discrepancy.py --only ool/rig_inertia/1 --out r.jsonl --misfit-inputs kept --no-recommend
     python bench/bench_unnamed_replay.py --inputs kept --results r.jsonl
-    python bench/bench_unnamed_replay.py --inputs kept --results r.jsonl --eta 1 --torsion-sds 0,0.001,0.003,0.01,0.03,0.1
+    python bench/bench_unnamed_replay.py --inputs kept --results r.jsonl --eta 1 \
+        --torsion-sds 0,0.001,0.003,0.01,0.03,0.1
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
+import zipfile
 
 import numpy as np
 
@@ -50,15 +52,30 @@ from dampersim.discrepancy.ramps import SCALES  # noqa: E402
 AGREE_NATS = 1e-9
 
 
+#: the arrays a case's kept inputs must hold, per part (bench_discrepancy.save_misfit_inputs)
+KEYS = {"torsion": {"r_fit", "jac", "prec", "offset", "eta", "basis"},
+        "ramps": {"residual", "sensitivity", "covariance", "sample_variance", "basis", "share"}}
+
+
 def read_inputs(path) -> dict:
     """A case's kept inputs ({"torsion": {...}, "ramps": {...} or None}) from the .npz that
-    bench_discrepancy.save_misfit_inputs wrote; scalars come back as floats."""
+    bench_discrepancy.save_misfit_inputs wrote; scalars come back as floats. Raises
+    ValueError naming the file when it is not such an .npz (unreadable, pickled objects,
+    unknown or missing arrays)."""
     out = {"torsion": {}, "ramps": {}}
-    with np.load(path, allow_pickle=False) as f:
-        for key in f.files:
-            part, name = key.split(".", 1)
-            v = f[key]
-            out[part][name] = float(v) if v.ndim == 0 else v
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            for key in f.files:
+                part, _, name = key.partition(".")
+                if name not in KEYS.get(part, ()):
+                    raise ValueError(f"unknown array {key!r}")
+                v = f[key]
+                out[part][name] = float(v) if v.ndim == 0 else v
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not the kept inputs of a diagnosis ({exc})") from None
+    for part, need in KEYS.items():
+        if out[part] and set(out[part]) != need or part == "torsion" and not out[part]:
+            raise ValueError(f"{path}: {part} lacks {', '.join(sorted(need - set(out[part])))}")
     out["ramps"] = out["ramps"] or None
     return out
 
@@ -73,13 +90,15 @@ def gains(inputs, eta=None, torsion_sds=U.TORSION_SDS, ramp_sds=U.RAMP_SDS_DEG) 
 
 def basis_take(torsion: dict) -> tuple:
     """(chi^2 left after the calibration and channels' columns, the part of it the basis
-    takes up as well): the residual at the fit projected off the Jacobian, and off the
-    Jacobian and the basis together (least squares, no priors)."""
+    takes up as well): the residual at the fit less its least-squares fit on the Jacobian,
+    and on the Jacobian and the basis together (no priors). Minimum-norm least squares (SVD):
+    the basis's degree-0 real column repeats the output gain's, so the columns together are
+    rank-deficient, and a plain QR would remove an arbitrary extra direction."""
     r, jac, basis = torsion["r_fit"], torsion["jac"], torsion["basis"]
 
     def left(cols):
-        q, _ = np.linalg.qr(cols)
-        v = r - q @ (q.T @ r)
+        sol = np.linalg.lstsq(cols, r, rcond=None)[0]
+        v = r - cols @ sol
         return float(v @ v)
 
     after = left(jac)
@@ -100,14 +119,20 @@ def _top(post: dict, k: int = 3) -> str:
 
 
 def _grid(text: str) -> tuple:
-    vals = tuple(float(v) for v in text.split(","))
-    if not vals or any(not math.isfinite(v) or v < 0 for v in vals):
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = (math.nan,)
+    if any(not math.isfinite(v) or v < 0 for v in vals):
         raise argparse.ArgumentTypeError(f"{text!r}: accepted is a comma-separated list of spreads >= 0")
     return vals
 
 
 def _eta(text: str) -> float:
-    v = float(text)
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
     if not 0.0 < v <= 1.0:
         raise argparse.ArgumentTypeError(f"{text!r}: a learning rate lies in (0, 1]")
     return v
@@ -147,11 +172,14 @@ def main(argv=None) -> int:
     rows = B.read_files(ap, a.results)
     agree, seen = True, 0
     for row in rows:
-        path = B.inputs_file(a.inputs, row.get("id", ""))
+        path = B.inputs_file(a.inputs, str(row.get("id", "")))
         if row.get("error") or not os.path.isfile(path):
             continue
         seen += 1
-        lines, ok = replay(row, read_inputs(path), a.eta, a.torsion_sds)
+        try:
+            lines, ok = replay(row, read_inputs(path), a.eta, a.torsion_sds)
+        except (ValueError, KeyError, TypeError) as exc:  # a file or a line not of one run: said, never skipped
+            lines, ok = [f"{row.get('id')}: cannot be replayed ({type(exc).__name__}: {exc})"], False
         agree &= ok
         print("\n".join(lines))
     if not seen:

@@ -391,21 +391,25 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # detectability of every candidate (two more magnitudes each, from the calibrated start)
         detect = {}
 
+        # the unnamed misfit's ramp D when the ramps hold no signature (0 without ramps)
+        ramp_none = 0.0 if ramp_lik is None else misfit.ramp_signature_gain(
+            ramp_lik.unnamed_inputs, np.zeros(ramp_lik.residuals), ramp_lik.noise_scale)
+
         def ramp_gain(name, m):
             """The ramps' share of an effect's detectability: (chi^2 of its windup signature at
             magnitude m against the calibrated model's prediction, the unnamed misfit's ramp D at
-            that signature and at none); zeros for effects the ramps are not read for."""
+            that signature, at none); no chi^2 and D at none twice for an effect the ramps are
+            not read for, or whose ramp run failed."""
             if ramp_lik is None or name not in design.RAMP_PROTOCOLS:
-                return 0.0, 0.0, 0.0
+                return 0.0, ramp_none, ramp_none
             w = ramps_lik.run_ramps(runner, with_effect(cal, name, {info(name).magnitude: m}), campaign.ramps)
             cov = models["none"]["cov"]
             pad = [np.zeros(ramp_lik.residuals)] * (cov.shape[0] - len(ramp_lik.cols_x))
             chi2 = ramp_lik.signature_gain(w, ramp_runs["none"], np.column_stack([*ramp_lik.cols_x, *pad]), cov)
             sig = ramp_lik.signature(w, ramp_runs["none"])
-            if sig is None:
-                return chi2, 0.0, 0.0
-            at = [misfit.ramp_signature_gain(ramp_lik.unnamed_inputs, v, ramp_lik.noise_scale) for v in (sig, 0 * sig)]
-            return chi2, *at
+            at = ramp_none if sig is None else misfit.ramp_signature_gain(ramp_lik.unnamed_inputs, sig,
+                                                                          ramp_lik.noise_scale)
+            return chi2, at, ramp_none
 
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")

@@ -477,7 +477,8 @@ class Namer:
         posterior of DETECTION_POSTERIOR against "none" needs
         (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): (the
         chi^2 the ramps would add at magnitude m, the unnamed misfit's ramp D at that
-        signature and at none) (None: torsional points only); eta: the
+        signature, at none; see :func:`~dampersim.discrepancy.unnamed.signature_share`) (None:
+        torsional points only); eta: the
         likelihood's learning rate, which scales the torsional chi^2 (a threshold read against
         the misfit the calibrated model really leaves); jac: the calibrated model's factor
         Jacobian (default the calibration's; :meth:`jac_of` of "none")."""

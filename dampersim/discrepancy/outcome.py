@@ -56,7 +56,7 @@ class Diagnosis:
     likelihood: dict = field(default_factory=dict)  # reduced chi^2, nuisance, log evidence, model priors
     #: what likelihood["unnamed_misfit"] is computed from, as arrays (not in the JSON):
     #: {"torsion": unnamed.torsion_gain's arguments, "ramps": unnamed.ramp_inputs or None}
-    misfit_inputs: dict = field(default_factory=dict)
+    misfit_inputs: dict = field(default_factory=dict, repr=False, compare=False)
 
     def to_json(self) -> dict:
         return {

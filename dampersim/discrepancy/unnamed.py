@@ -134,10 +134,11 @@ def signature_share(d, jac, prec, eta: float, basis, ramps=(0.0, 0.0)) -> float:
     as chi^2: twice :func:`combined` at the signature over that at no signature (the
     calibration at its prior centre, the noise left out, as the detectability's chi^2 leaves
     it out). Torsional: :func:`torsion_gain` at the standardised signature d. ramps: the
-    ramps' D at the effect's ramp signature and at none (:func:`ramp_signature_gain`; 0 and 0
-    for an effect the ramps are not read for). Near the signature's own chi^2 improvement
-    (after the calibration) for a strong signature the basis follows, near 0 for one it
-    cannot follow."""
+    ramps' D at the effect's ramp signature and at none (:func:`ramp_signature_gain`; the D at
+    none twice for an effect the ramps are not read for, 0 and 0 without ramps: combined is not
+    additive, so the ramps' D at none moves even a torsional share). Near the signature's own
+    chi^2 improvement (after the calibration) for a strong signature the basis follows, near 0
+    for one it cannot follow."""
     zero = np.zeros(np.asarray(jac).shape[1])
     at_d = combined(torsion_gain(d, jac, prec, zero, eta, basis), ramps[0])
     return 2.0 * (at_d - combined(torsion_gain(np.zeros_like(d), jac, prec, zero, eta, basis), ramps[1]))

@@ -5,9 +5,10 @@ with ``workers=1`` every run goes through that module attribute in this process,
 test can monkeypatch it with :func:`fake_model`. The stand-in's output order amplitudes
 depend smoothly on the outer spring rate and J_sec (what the calibration moves) and on
 two effects with the same signature: ``turbine_drag`` (coefficient / 3 times the bump)
-and ``clutch_slip`` (540 N m / capacity times the bump). A test campaign is measured from
-the same construction, so measured and simulated amplitudes agree exactly where the
-stand-in is right.
+and ``clutch_slip`` (540 N m / capacity times the bump). A ramp point's windup is the input
+torque over a rate that follows the outer spring, plus a loop for a slipping clutch
+(:func:`ramp_windup`). A test campaign is measured from the same construction, so measured
+and simulated amplitudes agree exactly where the stand-in is right.
 """
 
 from __future__ import annotations

@@ -222,7 +222,7 @@ def test_the_detectability_share_counts_the_ramps_with_the_torsional_points():
     with_ramps = U.signature_share(d, jac, prec, 1.0, basis, (20.0, -1.0))
     zero = np.zeros(2)
     t_d, t_0 = (U.torsion_gain(v, jac, prec, zero, 1.0, basis) for v in (d, 0 * d))
-    assert with_ramps == pytest.approx(2.0 * (U.combined(t_d, 20.0) - U.combined(t_0, -1.0)), rel=1e-12)
+    assert with_ramps == 2.0 * (U.combined(t_d, 20.0) - U.combined(t_0, -1.0))  # the same arithmetic: exact
     # the ramps' D of 20 nats over -1 at none: about 2 x (20 + log q - log(1 - q)) = 37 of chi^2,
     # where the torsional signature alone gives "none" next to nothing
     assert with_ramps > 30.0 and abs(alone) < 1.0
@@ -235,25 +235,32 @@ def test_a_diagnosis_with_a_ramp_keeps_the_misfit_inputs_and_reads_the_ramps_in_
     loop there; turbine drag does not show in ramps): the kept ramp inputs give back the
     reported ramp gain, and the detectability's share reads the ramps' misfit at the clutch's
     ramp signature (a gain above that at none: the loop is what the basis's direction term
-    expresses) and not for turbine drag, which the ramps are not read for."""
+    expresses) and at none on both sides for turbine drag, which the ramps are not read for
+    (its share is then the torsional one beside the ramps' D at none)."""
     from dampersim.discrepancy import drive
     from dampersim.discrepancy.diagnose import diagnose
+    from dampersim.discrepancy.naming import Namer
 
     monkeypatch.setattr(drive, "simulate_point", F.fake_model(None))
-    seen = []
-    real = U.signature_share
+    seen, now = {}, []
+    real_share, real_detect = U.signature_share, Namer.detectability
 
-    def spy(d, jac, prec, eta, basis, ramps=(0.0, 0.0)):
-        seen.append(tuple(ramps))
-        return real(d, jac, prec, eta, basis, ramps)
+    def share(d, jac, prec, eta, basis, ramps=(0.0, 0.0)):
+        seen.setdefault(now[-1], []).append(tuple(ramps))
+        return real_share(d, jac, prec, eta, basis, ramps)
 
-    monkeypatch.setattr(U, "signature_share", spy)
+    def detect(self, name, *args, **kw):
+        now.append(name)
+        return real_detect(self, name, *args, **kw)
+
+    monkeypatch.setattr(U, "signature_share", share)
+    monkeypatch.setattr(Namer, "detectability", detect)
     camp = F.campaign([F.point(*p) for p in F.POINTS] + [F.ramp("r0")])
     d = diagnose(camp, workers=1, candidates=["clutch_slip", "turbine_drag"], recommend=False)
     kept = d.misfit_inputs["ramps"]
     assert kept is not None and U.ramp_gain_of(kept, SCALES) == d.likelihood["unnamed_misfit"]["ramps"]
-    # two magnitudes tried per candidate beyond the typical one: clutch first, then drag
-    assert len(seen) % 2 == 0
-    clutch, drag = seen[:len(seen) // 2], seen[len(seen) // 2:]
-    assert clutch and all(at > none for at, none in clutch)
-    assert drag and all(r == (0.0, 0.0) for r in drag)
+    assert set(seen) == {"clutch_slip", "turbine_drag"}
+    at_none = {r[1] for rs in seen.values() for r in rs}
+    assert len(at_none) == 1 and at_none.pop() < 0.0  # one D at none, below 0: the misfit has nothing to follow
+    assert all(at > none for at, none in seen["clutch_slip"])
+    assert all(at == none for at, none in seen["turbine_drag"])

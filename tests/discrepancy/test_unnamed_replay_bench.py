@@ -72,15 +72,19 @@ def test_the_replay_recomputes_the_run_and_reports_a_mismatch(tmp_path, replay, 
     row = _row(inputs)
     # the run's own settings give back the run's posterior; the misfit is real here, so reading it
     # untempered gains more than at the run's learning rate of 0.4
-    assert replay.posterior_with(row, row["likelihood"]["unnamed_misfit"]["log_evidence"]) == pytest.approx(
-        selection.posterior({"none": -100.0 + row["likelihood"]["unnamed_misfit"]["log_evidence"],
-                             "transducer_bandwidth": -97.0, "clutch_slip": -math.inf}, row["likelihood"]["model_prior"]))
+    gain = row["likelihood"]["unnamed_misfit"]["log_evidence"]
+    want = {"none": -100.0 + gain, "transducer_bandwidth": -97.0, "clutch_slip": -math.inf}
+    priors = row["likelihood"]["model_prior"]
+    assert replay.posterior_with(row, gain) == pytest.approx(selection.posterior(want, priors))
     assert replay.gains(inputs, eta=1.0)[0] > replay.gains(inputs)[0] > 0.0
     lines, ok = replay.replay(row, inputs, etas=[1.0], grids=[(0.0, 0.1)])
     assert ok and "(agrees)" in lines[2] and len(lines) == 4 + 3
-    # after >= taken >= 0: a projection takes part of what is left, never more
+    # after >= taken >= 0: a projection takes part of what is left, never more; a basis column that
+    # repeats a Jacobian column (as the degree-0 one repeats the output gain's) changes nothing
     after, taken = replay.basis_take(inputs["torsion"])
     assert after >= taken > 0.0
+    t = dict(inputs["torsion"], basis=np.column_stack([inputs["torsion"]["jac"][:, :1], inputs["torsion"]["basis"]]))
+    assert replay.basis_take(t) == pytest.approx((after, taken), rel=1e-9)
     # through main: agreement exits 0; a run whose recorded gain differs by 1e-6 nats exits 1
     replay.B.save_misfit_inputs(replay.B.inputs_file(str(tmp_path), row["id"]), inputs)
     results = tmp_path / "r.jsonl"
@@ -100,8 +104,32 @@ def test_the_replay_recomputes_the_run_and_reports_a_mismatch(tmp_path, replay, 
     assert exc.value.code == 2
 
 
-def test_bad_variants_are_refused(replay, tmp_path):
-    for args in (["--eta", "0"], ["--eta", "1.5"], ["--torsion-sds", "0,-0.1"], ["--torsion-sds", "a"]):
+def test_bad_variants_and_bad_files_are_refused_with_what_is_accepted(replay, tmp_path, capsys):
+    inputs = _inputs()
+    row = _row(inputs)
+    replay.B.save_misfit_inputs(replay.B.inputs_file(str(tmp_path), row["id"]), inputs)
+    results = tmp_path / "r.jsonl"
+    results.write_text(json.dumps(row) + "\n")
+    base = ["--inputs", str(tmp_path), "--results", str(results)]
+    for args, said in ((["--eta", "0"], "a learning rate lies in (0, 1]"), (["--eta", "x"], "a learning rate"),
+                       (["--eta", "1.5"], "a learning rate lies in (0, 1]"),
+                       (["--torsion-sds", "0,-0.1"], "a comma-separated list of spreads >= 0"),
+                       (["--torsion-sds", "a"], "a comma-separated list of spreads >= 0")):
         with pytest.raises(SystemExit) as exc:
-            replay.main(["--inputs", str(tmp_path), "--results", str(tmp_path / "r.jsonl"), *args])
-        assert exc.value.code == 2
+            replay.main(base + args)
+        assert exc.value.code == 2 and said in capsys.readouterr().err, args
+    # a kept file that is not what save_misfit_inputs writes: named, the case reported, exit 1
+    path = replay.B.inputs_file(str(tmp_path), row["id"])
+    for bad in ({"torsion.r_fit": np.zeros(3)}, {"torsion.r_fit": np.zeros(3), "extra": np.zeros(1)}):
+        np.savez(path, **bad)
+        with pytest.raises(ValueError, match="ool__rig_inertia__1.npz"):
+            replay.read_inputs(path)
+        assert replay.main(base) == 1
+        assert "cannot be replayed" in capsys.readouterr().out
+    with open(path, "wb") as fh:
+        fh.write(b"not a zip")
+    assert replay.main(base) == 1
+    # a results line without the misfit's figures (another tool's line of the same case)
+    replay.B.save_misfit_inputs(path, inputs)
+    results.write_text(json.dumps({"id": row["id"], "likelihood": {}}) + "\n")
+    assert replay.main(base) == 1 and "cannot be replayed" in capsys.readouterr().out
