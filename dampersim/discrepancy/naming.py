@@ -441,11 +441,6 @@ class Namer:
         return {"r_fit": r, "jac": jac, "prec": prec, "offset": self._offset(fit, names), "eta": float(eta),
                 "basis": unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])}
 
-    def unnamed_gain(self, fit, eta: float = 1.0) -> float:
-        """The torsional evidence gain of an unnamed smooth misfit beside a fitted model
-        (:func:`dampersim.discrepancy.unnamed.torsion_gain` of :meth:`unnamed_inputs`)."""
-        return unnamed.torsion_gain(**self.unnamed_inputs(fit, eta))
-
     @staticmethod
     def _offset(fit, names) -> np.ndarray:
         """The fitted parameters minus their prior centres, in the evidence's column order:

@@ -220,31 +220,13 @@ def ramp_signature_gain(inputs, d, scale: float, sds_deg=RAMP_SDS_DEG) -> float:
     """The ramps' D of the unnamed misfit when the compared samples' residual is ``d`` [rad]
     (an effect's ramp signature; zeros for none), from "none"'s :func:`ramp_inputs`, at the
     fixed uncertainty scale ``scale`` that detectability reads the ramps against
-    (:attr:`RampLikelihood.noise_scale`: a signature must not buy itself a wider noise),
-    tempered by the effective share. 0 for no inputs."""
-    if inputs is None:
-        return 0.0
-    d = np.asarray(d, dtype=float)
-    j, c, basis = inputs["sensitivity"], inputs["covariance"], inputs["basis"]
-    base = np.diag(inputs["sample_variance"] * scale ** 2) + j @ c @ j.T
-    terms = []
-    for sd in (math.radians(v) for v in sds_deg):
-        cov = base + sd ** 2 * basis @ basis.T
-        sign, logdet = np.linalg.slogdet(cov)
-        terms.append(-math.inf if sign <= 0 else -0.5 * float(d @ np.linalg.solve(cov, d)) - 0.5 * logdet)
-    if not math.isfinite(terms[0]):
-        return 0.0
-    return _log_mean_exp(inputs["share"] * (np.asarray(terms) - terms[0]))
-
-
-def ramp_gain(lik_r, windups, jac, cov, scales) -> float:
-    """The ramps' log evidence gain D of the unnamed misfit beside the calibrated model's
-    prediction (its windups, sensitivities ``jac`` and parameter covariance ``cov``, as
-    :meth:`RampLikelihood.predictive` takes them): :func:`ramp_gain_of` of
-    :func:`ramp_inputs`, read at ``lik_r``'s effective share."""
-    return ramp_gain_of(ramp_inputs(lik_r, windups, jac, cov), scales)
+    (:attr:`RampLikelihood.noise_scale`: a signature must not buy itself a wider noise):
+    :func:`ramp_gain_of` with ``d`` as the residual and ``scale`` the only scale. 0 for no
+    inputs."""
+    return 0.0 if inputs is None else ramp_gain_of({**inputs, "residual": np.asarray(d, dtype=float)}, (scale,),
+                                                   sds_deg)
 
 
 __all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
            "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share", "ramp_direction",
-           "ramp_basis", "ramp_inputs", "ramp_gain_of", "ramp_signature_gain", "ramp_gain"]
+           "ramp_basis", "ramp_inputs", "ramp_gain_of", "ramp_signature_gain"]

@@ -59,6 +59,11 @@ def test_a_white_residual_pays_little_and_a_smooth_misfit_gains():
         assert lo <= gain <= hi
 
 
+def _ramp_gain(lik, windups, jac, cov):
+    """The ramps' gain as the diagnosis reads it: ramp_gain_of of ramp_inputs."""
+    return U.ramp_gain_of(U.ramp_inputs(lik, windups, jac, cov), SCALES)
+
+
 def _ramp_dense(lik, model, jac, cov):
     """The ramps' gain by brute force with scipy's Gaussian density: for each sd the best
     scale's log likelihood, tempered by the effective share inside the mean over the sds."""
@@ -99,12 +104,12 @@ def test_the_ramp_gain_sees_a_loop_width_error_and_not_noise():
         meas = dataclasses.replace(p, windup=p.windup + extra + noise)
         lik = RampLikelihood([meas], model, model)
         j = np.zeros((lik.residuals, 1))
-        g = U.ramp_gain(lik, model, j, cov, SCALES)
+        g = _ramp_gain(lik, model, j, cov)
         # two routes to the same Gaussian densities: agreement to 1e-7 relative (rounding)
         assert g == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7, abs=1e-7)
         gains.append(g)
         lik.fraction = 0.3  # the ramps' effective share tempers every spread's likelihood
-        assert U.ramp_gain(lik, model, j, cov, SCALES) == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7,
+        assert _ramp_gain(lik, model, j, cov) == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7,
                                                                         abs=1e-7)
     assert -math.log(len(U.RAMP_SDS_DEG)) - 1e-9 <= gains[0] < 1.0  # the bound, reached when no spread helps
     assert gains[1] > 5.0
@@ -113,7 +118,7 @@ def test_the_ramp_gain_sees_a_loop_width_error_and_not_noise():
 def test_a_failed_ramp_run_gains_nothing():
     p = F.ramp("r0")
     lik = RampLikelihood([p], {p.id: p.windup}, {p.id: p.windup})
-    assert U.ramp_gain(lik, {p.id: "SimulationDiverged"}, np.zeros((lik.residuals, 1)), np.eye(1), SCALES) == 0.0
+    assert _ramp_gain(lik, {p.id: "SimulationDiverged"}, np.zeros((lik.residuals, 1)), np.eye(1)) == 0.0
 
 
 def test_the_detectability_counts_what_a_smooth_misfit_would_take_of_a_signature():
@@ -177,7 +182,7 @@ def test_a_ramp_without_a_proper_covariance_gains_nothing(monkeypatch):
     lik = RampLikelihood([p], {p.id: p.windup}, {p.id: p.windup})
     n = lik.residuals
     monkeypatch.setattr(lik, "parts", lambda jac, cov: (np.zeros((n, 1)), np.zeros((1, 1)), np.zeros(n)))
-    assert U.ramp_gain(lik, {p.id: p.windup}, np.zeros((n, 1)), np.eye(1), SCALES) == 0.0
+    assert _ramp_gain(lik, {p.id: p.windup}, np.zeros((n, 1)), np.eye(1)) == 0.0
 
 
 def test_the_ramp_signature_gain_is_the_fixed_scale_evidence_ratio():
