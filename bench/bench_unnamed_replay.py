@@ -36,6 +36,7 @@ import math
 import os
 import sys
 import zipfile
+import zlib
 
 import numpy as np
 
@@ -71,10 +72,10 @@ def read_inputs(path) -> dict:
                     raise ValueError(f"unknown array {key!r}")
                 v = f[key]
                 out[part][name] = float(v) if v.ndim == 0 else v
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+    except (OSError, EOFError, ValueError, TypeError, zipfile.BadZipFile, zlib.error) as exc:
         raise ValueError(f"{path}: not the kept inputs of a diagnosis ({exc})") from None
     for part, need in KEYS.items():
-        if out[part] and set(out[part]) != need or part == "torsion" and not out[part]:
+        if (out[part] and set(out[part]) != need) or (part == "torsion" and not out[part]):
             raise ValueError(f"{path}: {part} lacks {', '.join(sorted(need - set(out[part])))}")
     out["ramps"] = out["ramps"] or None
     return out
@@ -170,10 +171,11 @@ def main(argv=None) -> int:
     if not os.path.isdir(a.inputs):
         ap.error(f"--inputs {a.inputs}: no such directory")
     rows = B.read_files(ap, a.results)
-    agree, seen = True, 0
+    agree, seen, skipped = True, 0, 0
     for row in rows:
         path = B.inputs_file(a.inputs, str(row.get("id", "")))
         if row.get("error") or not os.path.isfile(path):
+            skipped += 1
             continue
         seen += 1
         try:
@@ -182,6 +184,8 @@ def main(argv=None) -> int:
             lines, ok = [f"{row.get('id')}: cannot be replayed ({type(exc).__name__}: {exc})"], False
         agree &= ok
         print("\n".join(lines))
+    if skipped:
+        print(f"{skipped} line(s) of the results without kept inputs (or a failed case): not replayed")
     if not seen:
         print(f"no case of {', '.join(a.results)} has kept inputs in {a.inputs}", file=sys.stderr)
         return 1

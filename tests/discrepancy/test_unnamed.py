@@ -109,8 +109,7 @@ def test_the_ramp_gain_sees_a_loop_width_error_and_not_noise():
         assert g == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7, abs=1e-7)
         gains.append(g)
         lik.fraction = 0.3  # the ramps' effective share tempers every spread's likelihood
-        assert _ramp_gain(lik, model, j, cov) == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7,
-                                                                        abs=1e-7)
+        assert _ramp_gain(lik, model, j, cov) == pytest.approx(_ramp_dense(lik, model, j, cov), rel=1e-7, abs=1e-7)
     assert -math.log(len(U.RAMP_SDS_DEG)) - 1e-9 <= gains[0] < 1.0  # the bound, reached when no spread helps
     assert gains[1] > 5.0
 

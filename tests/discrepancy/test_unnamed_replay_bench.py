@@ -126,9 +126,13 @@ def test_bad_variants_and_bad_files_are_refused_with_what_is_accepted(replay, tm
             replay.read_inputs(path)
         assert replay.main(base) == 1
         assert "cannot be replayed" in capsys.readouterr().out
-    with open(path, "wb") as fh:
-        fh.write(b"not a zip")
-    assert replay.main(base) == 1
+    for junk in (b"not a zip", b""):  # b"": a save killed right after the file was opened
+        with open(path, "wb") as fh:
+            fh.write(junk)
+        with pytest.raises(ValueError, match="not the kept inputs of a diagnosis"):
+            replay.read_inputs(path)
+        assert replay.main(base) == 1
+        assert "cannot be replayed" in capsys.readouterr().out
     # a results line without the misfit's figures (another tool's line of the same case)
     replay.B.save_misfit_inputs(path, inputs)
     results.write_text(json.dumps({"id": row["id"], "likelihood": {}}) + "\n")
