@@ -45,7 +45,6 @@ import bench_discrepancy as B  # noqa: E402 - the kept inputs' file naming and t
 
 from dampersim.discrepancy import selection  # noqa: E402
 from dampersim.discrepancy import unnamed as U  # noqa: E402
-from dampersim.discrepancy.ramps import SCALES  # noqa: E402
 
 #: agreement of a recomputed gain with the run's [nats]: the same arithmetic on the same
 #: arrays (float64 written to and read from .npz exactly), so only the order of summation
@@ -79,14 +78,6 @@ def read_inputs(path) -> dict:
             raise ValueError(f"{path}: {part} lacks {', '.join(sorted(need - set(out[part])))}")
     out["ramps"] = out["ramps"] or None
     return out
-
-
-def gains(inputs, eta=None, torsion_sds=U.TORSION_SDS, ramp_sds=U.RAMP_SDS_DEG) -> tuple:
-    """(D_torsional, D_ramps) from kept inputs; eta None keeps the run's learning rate."""
-    t = dict(inputs["torsion"])
-    if eta is not None:
-        t["eta"] = float(eta)
-    return U.torsion_gain(**t, sds=torsion_sds), U.ramp_gain_of(inputs["ramps"], SCALES, ramp_sds)
 
 
 def basis_take(torsion: dict) -> tuple:
@@ -142,7 +133,7 @@ def _eta(text: str) -> float:
 def replay(row, inputs, etas=(), grids=()) -> tuple:
     """The printed lines for one case and whether the recomputed gains agree with the run's."""
     run = row["likelihood"]["unnamed_misfit"]
-    d_t, d_r = gains(inputs)
+    d_t, d_r = U.gains(inputs)
     ok = abs(d_t - run["torsional"]) <= AGREE_NATS and abs(d_r - run["ramps"]) <= AGREE_NATS
     eta = inputs["torsion"]["eta"]
     after, taken = basis_take(inputs["torsion"])
@@ -154,7 +145,7 @@ def replay(row, inputs, etas=(), grids=()) -> tuple:
     variants = [("as run", None, U.TORSION_SDS)] + [(f"misfit at eta {e:g}", e, U.TORSION_SDS) for e in etas] + \
                [("sds " + ",".join(f"{s:g}" for s in g), None, g) for g in grids]
     for label, e, sds in variants:
-        t, r = gains(inputs, e, sds)
+        t, r = U.gains(inputs, e, sds)
         g = U.combined(t, r)
         lines.append(f"  {label:34s} D_t {t:8.3f}  D_r {r:7.3f}  gain {g:8.3f}  -> {_top(posterior_with(row, g))}")
     return lines, ok

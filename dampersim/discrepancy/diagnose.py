@@ -371,8 +371,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # a candidate has to explain the data better than such a misfit does
         misfit_inputs = {"torsion": namer.unnamed_inputs(models["none"], eta),
                          "ramps": ramp_lik.unnamed_inputs if ramp_lik is not None else None}
-        unnamed = {"torsional": misfit.torsion_gain(**misfit_inputs["torsion"]),
-                   "ramps": ramp_lik.unnamed if ramp_lik is not None else 0.0}
+        unnamed = dict(zip(("torsional", "ramps"), misfit.gains(misfit_inputs)))
         unnamed["log_evidence"] = misfit.combined(unnamed["torsional"], unnamed["ramps"])
         log_z = selection.model_log_evidence(models, cands, pairs, screen_z, ramp_ll, penalty, unfitted,
                                              unnamed["log_evidence"])

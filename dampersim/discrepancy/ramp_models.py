@@ -31,9 +31,8 @@ def magnitude(system, name) -> float:
 def evidence(runner, system, x, models, points):
     """Each model's ramp prediction: (RampLikelihood, {model: windups}, {model: log
     likelihood}, {model: chi^2}); the RampLikelihood's ``scales`` holds each model's fitted
-    uncertainty scale, its ``unnamed`` the ramps' evidence gain of an unnamed smooth misfit
-    beside "none" (:func:`dampersim.discrepancy.unnamed.ramp_gain_of`) and its
-    ``unnamed_inputs`` what that gain is computed from
+    uncertainty scale, its ``unnamed_inputs`` what the ramps' evidence gain of an unnamed
+    smooth misfit beside "none" is computed from
     (:func:`~dampersim.discrepancy.unnamed.ramp_inputs`). The ramps' sensitivities to the
     calibration factors are run once at the calibrated model (kept as the RampLikelihood's
     ``cols_x``), to each effect's magnitude once per fitted model; shape parameters are not
@@ -68,9 +67,8 @@ def evidence(runner, system, x, models, points):
     # model's log likelihood from here on) and the noise scale of detectability
     ll = lik_r.settle(ll, scales, whitened)
     lik_r.cols_x = cols_x
-    # the unnamed smooth misfit's evidence on the ramps beside "none", read at the settled share
+    # what the unnamed smooth misfit's evidence on the ramps beside "none" is computed from, at the settled share
     lik_r.unnamed_inputs = unnamed.ramp_inputs(lik_r, runs["none"], jac_none, cov_none)
-    lik_r.unnamed = unnamed.ramp_gain_of(lik_r.unnamed_inputs, ramps_lik.SCALES)
     return lik_r, runs, ll, chi
 
 

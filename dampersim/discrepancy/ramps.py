@@ -119,8 +119,7 @@ class RampLikelihood:
         self.fraction = 1.0  # the effective share of independent samples (see effective_share)
         self.scales = {}  # {model: its prediction's uncertainty scale} (settle)
         self.reference = "none"  # the model whose ramp prediction is best (settle, ramp_reference)
-        self.unnamed = 0.0  # evidence gain of an unnamed smooth misfit beside "none" (ramp_models.evidence)
-        self.unnamed_inputs = None  # and what that gain is computed from (unnamed.ramp_inputs)
+        self.unnamed_inputs = None  # what the unnamed misfit's gain beside "none" is computed from (ramp_models)
         self.meas, self.sigma, self.idx = {}, {}, {}
         floor = math.radians(WINDUP_FLOOR_DEG)
         for p in self.points:

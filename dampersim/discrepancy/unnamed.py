@@ -38,7 +38,7 @@ import numpy as np
 from scipy.linalg import block_diag
 from scipy.special import logsumexp
 
-from dampersim.discrepancy.ramps import RampLikelihood
+from dampersim.discrepancy.ramps import SCALES, RampLikelihood
 
 #: prior probability, within "no missing effect", that an unnamed smooth misfit is present
 MISFIT_PRIOR = 0.2
@@ -216,6 +216,17 @@ def ramp_gain_of(inputs, scales, sds_deg=RAMP_SDS_DEG) -> float:
     return _log_mean_exp(np.asarray(best) - best[0])
 
 
+def gains(inputs, eta=None, torsion_sds=TORSION_SDS, ramp_sds_deg=RAMP_SDS_DEG) -> tuple:
+    """(D_torsional, D_ramps) of the unnamed misfit from a diagnosis's ``misfit_inputs``
+    ({"torsion": :func:`torsion_gain`'s arguments, "ramps": :func:`ramp_inputs` or None}):
+    what the diagnosis reads, and, with another learning rate ``eta`` or other spreads, what
+    the same residuals would give (bench/bench_unnamed_replay.py)."""
+    t = dict(inputs["torsion"])
+    if eta is not None:
+        t["eta"] = float(eta)
+    return torsion_gain(**t, sds=torsion_sds), ramp_gain_of(inputs["ramps"], SCALES, ramp_sds_deg)
+
+
 def ramp_signature_gain(inputs, d, scale: float, sds_deg=RAMP_SDS_DEG) -> float:
     """The ramps' D of the unnamed misfit when the compared samples' residual is ``d`` [rad]
     (an effect's ramp signature; zeros for none), from "none"'s :func:`ramp_inputs`, at the
@@ -229,4 +240,4 @@ def ramp_signature_gain(inputs, d, scale: float, sds_deg=RAMP_SDS_DEG) -> float:
 
 __all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
            "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share", "ramp_direction",
-           "ramp_basis", "ramp_inputs", "ramp_gain_of", "ramp_signature_gain"]
+           "ramp_basis", "ramp_inputs", "ramp_gain_of", "gains", "ramp_signature_gain"]

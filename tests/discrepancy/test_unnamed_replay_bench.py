@@ -76,7 +76,7 @@ def test_the_replay_recomputes_the_run_and_reports_a_mismatch(tmp_path, replay, 
     want = {"none": -100.0 + gain, "transducer_bandwidth": -97.0, "clutch_slip": -math.inf}
     priors = row["likelihood"]["model_prior"]
     assert replay.posterior_with(row, gain) == pytest.approx(selection.posterior(want, priors))
-    assert replay.gains(inputs, eta=1.0)[0] > replay.gains(inputs)[0] > 0.0
+    assert U.gains(inputs, eta=1.0)[0] > U.gains(inputs)[0] > 0.0
     lines, ok = replay.replay(row, inputs, etas=[1.0], grids=[(0.0, 0.1)])
     assert ok and "(agrees)" in lines[2] and len(lines) == 4 + 3
     # after >= taken >= 0: a projection takes part of what is left, never more; a basis column that
