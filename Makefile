@@ -8,8 +8,13 @@ VENV_PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 TEST_CACHE := $(CURDIR)/.test-cache
 PYTEST_ARGS ?=
-# Two processes: the strict identification diagnoses and other modules that only compute run
-# beside the rest of the suite (tests/conftest.py, APART); PYTEST_XDIST= runs everything in one process.
+# The strict identification tests run first and alone, so that their diagnoses have both cores
+# (two model processes each); STRICT_TESTS= leaves them to the lanes below. PYTEST_ARGS goes to
+# both runs: give it options, not paths (a path would run in both). The first run's exit status 5
+# (no test selected, e.g. a -k that matches none of them) does not fail `make test`.
+STRICT_TESTS ?= tests/discrepancy/test_identification.py
+# Then two processes: modules that only compute run beside the rest of the suite
+# (tests/conftest.py, APART); PYTEST_XDIST= runs the rest in one process.
 PYTEST_XDIST ?= -n 2
 
 # numba's cache=True writes here, so it works in a fresh clone / read-only tree.
@@ -38,7 +43,14 @@ test: venv
 	mkdir -p $(TEST_CACHE)
 	bash scripts/ensure-chromium.sh
 	$(VENV)/bin/lint-imports --no-cache
-	$(VENV_PY) -m pytest $(PYTEST_XDIST) $(PYTEST_ARGS)
+	@status=0; \
+	if [ -n "$(STRICT_TESTS)" ]; then \
+	  echo "== strict identification tests, alone: $(STRICT_TESTS)"; \
+	  $(VENV_PY) -m pytest $(STRICT_TESTS) $(PYTEST_ARGS) || { s=$$?; [ $$s -eq 5 ] || status=$$s; }; \
+	fi; \
+	echo "== the rest of the suite"; \
+	$(VENV_PY) -m pytest $(PYTEST_XDIST) $(addprefix --ignore=,$(STRICT_TESTS)) $(PYTEST_ARGS) || status=$$?; \
+	exit $$status
 
 bench: venv
 	@set -e; found=0; \

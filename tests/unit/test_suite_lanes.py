@@ -36,3 +36,15 @@ def test_the_scheduler_puts_the_apart_modules_in_one_lane_and_the_rest_in_the_ot
               "tests/e2e/test_browser.py::test_moving_a_slider_updates_figures_and_the_url",
               "tests/discrepancy/test_identification_extra.py::test_x"]
     assert {sched._split_scope(i) for i in others} == {"suite"}
+
+
+def test_the_strict_tests_the_makefile_runs_first_exist_and_have_a_lane_when_kept_in_the_lanes():
+    # `make test` runs STRICT_TESTS alone before the lanes and ignores them there; a renamed
+    # module would otherwise run in neither the first run (no such file) nor, when STRICT_TESTS=
+    # keeps them in the lanes, in the lane of their own
+    with open(os.path.join(ROOT, "Makefile")) as f:
+        lines = [line.split("?=", 1)[1].split() for line in f if line.startswith("STRICT_TESTS ?=")]
+    assert len(lines) == 1 and lines[0], "Makefile: one STRICT_TESTS ?= line naming the modules"
+    for path in lines[0]:
+        assert os.path.isfile(os.path.join(ROOT, path)), path
+        assert path in conftest.APART, path
