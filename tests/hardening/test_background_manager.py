@@ -58,6 +58,18 @@ def sleep_and_return(job):
     return {"pid": os.getpid(), "tag": job.get("tag")}
 
 
+def meet_then_sleep(job):
+    """Wait until ``job["meet"]`` jobs have started (each leaves a file in ``job["folder"]``),
+    for at most ``job["wait"]`` s, then sleep as :func:`sleep_and_return`. Jobs that a limit
+    lets run together then overlap by the whole sleep however slowly the machine starts them;
+    under a lower limit the first waits out its ``wait`` alone."""
+    open(os.path.join(job["folder"], str(os.getpid())), "w").close()
+    deadline = time.monotonic() + job["wait"]
+    while len(os.listdir(job["folder"])) < job["meet"] and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return sleep_and_return(job)
+
+
 def spawn_child_and_sleep(job):
     child = subprocess.Popen(["sleep", "60"])  # a stand-in for a sweep's pool worker
     with open(job["child_file"], "w") as fh:
@@ -76,7 +88,8 @@ def report_progress(set_progress, job):
     return {"ok": True}
 
 
-FUNCTIONS = {f.__name__: f for f in (sleep_and_return, spawn_child_and_sleep, fail_with_a_path, report_progress)}
+FUNCTIONS = {f.__name__: f for f in (sleep_and_return, meet_then_sleep, spawn_child_and_sleep, fail_with_a_path,
+                                     report_progress)}
 
 
 def _register(name, progress=False):
@@ -452,11 +465,14 @@ def test_session_cookie_is_set_once_http_only_and_strict(tmp_path):
     assert "Set-Cookie" not in client.get("/").headers  # the browser sent it back
 
 
-def _server_process(cache, registry, barrier, out):
-    """A second server process: its own manager on the same folders, three jobs."""
+def _server_process(cache, registry, meet, barrier, out):
+    """A second server process: its own manager on the same folders, three jobs. The first two
+    jobs to start (of either server) meet before they sleep, so that the peak of two is reached
+    even when starting a job takes longer than another's sleep (a busy machine)."""
     manager = make_manager(cache, registry_dir=registry, max_jobs=2, per_session=8, queued_per_session=8)
     barrier.wait()
-    callers = [Caller(manager, "sleep_and_return", {"sleep": 0.4}) for _ in range(3)]
+    job = {"sleep": 0.4, "folder": str(meet), "meet": 2, "wait": 10}
+    callers = [Caller(manager, "meet_then_sleep", job) for _ in range(3)]
     poll_all(callers, budget_s=20)  # three 0.4 s jobs on a limit shared with another server, spawned
     out.put([c.result.get("pid") if isinstance(c.result, dict) else None for c in callers] + [repr(c.result)[:200] for c in callers])
     barrier.wait()  # shutdown ends the jobs this process started, some of them for the other one
@@ -464,13 +480,16 @@ def _server_process(cache, registry, barrier, out):
 
 
 def test_two_server_processes_share_one_global_limit(tmp_path):
-    cache, registry = tmp_path / "callbacks", tmp_path / "jobs"
+    cache, registry, meet = tmp_path / "callbacks", tmp_path / "jobs", tmp_path / "meet"
+    meet.mkdir()
     ctx = multiprocessing.get_context("fork")
     barrier, out = ctx.Barrier(2), ctx.Queue()
-    servers = [ctx.Process(target=_server_process, args=(cache, registry, barrier, out)) for _ in range(2)]
+    servers = [ctx.Process(target=_server_process, args=(cache, registry, meet, barrier, out)) for _ in range(2)]
     for s in servers:
         s.start()
-    peak, deadline = 0, time.monotonic() + 30  # 6 jobs of 0.4 s on 2 slots, plus forks on a busy machine
+    # 6 jobs of 0.4 s on 2 slots, plus forks on a busy machine; under a limit of one, the
+    # first job's 10 s wait for a partner (then a peak of 1) still ends well within this
+    peak, deadline = 0, time.monotonic() + 30
     while any(s.is_alive() for s in servers):
         assert time.monotonic() < deadline, "server processes still running"
         peak = max(peak, len(job_processes()))
