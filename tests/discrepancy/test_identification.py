@@ -7,7 +7,7 @@ drift and anti-alias filtering). Nine mapping points of 0.8 s for the absorber, 
 for the control, three candidates, torsional points only, the model at three times the library's
 step (TIME_STEP). `make test` runs this module first, alone on the machine (WORKERS); its
 times are in docs/discrepancy.md (Known limits, "The strict tests' model step" and "The strict
-tests' time in this environment"); at the library's step, on one core beside the rest of the
+tests run first and alone"); at the library's step, on one core beside the rest of the
 suite, it took 685 to 713 s (856 s with nine points for both). These tests are strict: a
 change that stops the method naming the absorber as the most probable model with its
 magnitude, or that makes it name an effect in a clean campaign, fails here. The full
