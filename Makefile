@@ -10,8 +10,8 @@ TEST_CACHE := $(CURDIR)/.test-cache
 PYTEST_ARGS ?=
 # The strict identification tests run first and alone, so that their diagnoses have both cores
 # (two model processes each); STRICT_TESTS= leaves them to the lanes below. PYTEST_ARGS goes to
-# both runs: give it options, not paths (a path would run in both). The first run's exit status 5
-# (no test selected, e.g. a -k that matches none of them) does not fail `make test`.
+# both runs: give it options, not paths (scripts/run-tests.sh says how the two exit statuses
+# combine).
 STRICT_TESTS ?= tests/discrepancy/test_identification.py
 # Then two processes: modules that only compute run beside the rest of the suite
 # (tests/conftest.py, APART); PYTEST_XDIST= runs the rest in one process.
@@ -36,21 +36,14 @@ $(STAMP): pyproject.toml
 run: venv
 	$(VENV_PY) app.py --host 127.0.0.1 --port 8050
 
-# Each test run starts with a cold result cache.
+# Each `make test` starts with a cold result cache (its two pytest runs share it).
 test: export DAMPERSIM_CACHE_DIR := $(TEST_CACHE)
 test: venv
 	rm -rf $(TEST_CACHE)
 	mkdir -p $(TEST_CACHE)
 	bash scripts/ensure-chromium.sh
 	$(VENV)/bin/lint-imports --no-cache
-	@status=0; \
-	if [ -n "$(STRICT_TESTS)" ]; then \
-	  echo "== strict identification tests, alone: $(STRICT_TESTS)"; \
-	  $(VENV_PY) -m pytest $(STRICT_TESTS) $(PYTEST_ARGS) || { s=$$?; [ $$s -eq 5 ] || status=$$s; }; \
-	fi; \
-	echo "== the rest of the suite"; \
-	$(VENV_PY) -m pytest $(PYTEST_XDIST) $(addprefix --ignore=,$(STRICT_TESTS)) $(PYTEST_ARGS) || status=$$?; \
-	exit $$status
+	PY=$(VENV_PY) STRICT_TESTS="$(STRICT_TESTS)" PYTEST_XDIST="$(PYTEST_XDIST)" bash scripts/run-tests.sh $(PYTEST_ARGS)
 
 bench: venv
 	@set -e; found=0; \

@@ -59,14 +59,15 @@ def sleep_and_return(job):
 
 
 def meet_then_sleep(job):
-    """Wait until ``job["meet"]`` jobs have started (each leaves a file in ``job["folder"]``),
-    for at most ``job["wait"]`` s, then sleep as :func:`sleep_and_return`. Jobs that a limit
-    lets run together then overlap by the whole sleep however slowly the machine starts them;
-    under a lower limit the first waits out its ``wait`` alone."""
+    """Leave a file in ``job["folder"]``, wait until ``job["meet"]`` jobs have left one, then
+    until the file ``job["release"]`` exists (each for at most ``job["wait"]`` s), then sleep as
+    :func:`sleep_and_return`. Jobs that a limit lets run together are then all alive at once
+    until the test releases them, however slowly a busy machine starts them."""
     open(os.path.join(job["folder"], str(os.getpid())), "w").close()
-    deadline = time.monotonic() + job["wait"]
-    while len(os.listdir(job["folder"])) < job["meet"] and time.monotonic() < deadline:
-        time.sleep(0.01)
+    for ready in (lambda: len(os.listdir(job["folder"])) >= job["meet"], lambda: os.path.exists(job["release"])):
+        deadline = time.monotonic() + job["wait"]
+        while not ready() and time.monotonic() < deadline:
+            time.sleep(0.01)
     return sleep_and_return(job)
 
 
@@ -465,35 +466,53 @@ def test_session_cookie_is_set_once_http_only_and_strict(tmp_path):
     assert "Set-Cookie" not in client.get("/").headers  # the browser sent it back
 
 
-def _server_process(cache, registry, meet, barrier, out):
-    """A second server process: its own manager on the same folders, three jobs. The first two
-    jobs to start (of either server) meet before they sleep, so that the peak of two is reached
-    even when starting a job takes longer than another's sleep (a busy machine)."""
+#: a job of the shared-limit test: its 0.4 s sleep after the first two jobs have met and the
+#: test has released them, each wait at most 8 s
+SHARED_LIMIT_JOB = {"sleep": 0.4, "meet": 2, "wait": 8}
+#: how long the test holds the jobs after it first sees two [s]: a lost shared limit (each
+#: server allowing two) would start a third meanwhile, and it is held too
+HOLD_S = 1.0
+#: the test releases the jobs this long after the start [s] if it never sees two (a limit of one)
+RELEASE_S = 10.0
+
+
+def _server_process(cache, registry, job, barrier, out):
+    """A second server process: its own manager on the same folders, three jobs ``job``
+    (:func:`meet_then_sleep`)."""
     manager = make_manager(cache, registry_dir=registry, max_jobs=2, per_session=8, queued_per_session=8)
     barrier.wait()
-    job = {"sleep": 0.4, "folder": str(meet), "meet": 2, "wait": 10}
     callers = [Caller(manager, "meet_then_sleep", job) for _ in range(3)]
-    poll_all(callers, budget_s=20)  # three 0.4 s jobs on a limit shared with another server, spawned
+    poll_all(callers, budget_s=40)  # six jobs on a limit shared with another server, spawned, held up to 10 s
     out.put([c.result.get("pid") if isinstance(c.result, dict) else None for c in callers] + [repr(c.result)[:200] for c in callers])
     barrier.wait()  # shutdown ends the jobs this process started, some of them for the other one
     manager.shutdown()
 
 
 def test_two_server_processes_share_one_global_limit(tmp_path):
-    cache, registry, meet = tmp_path / "callbacks", tmp_path / "jobs", tmp_path / "meet"
+    cache, registry, meet, release = tmp_path / "callbacks", tmp_path / "jobs", tmp_path / "meet", tmp_path / "release"
     meet.mkdir()
+    job = {**SHARED_LIMIT_JOB, "folder": str(meet), "release": str(release)}
     ctx = multiprocessing.get_context("fork")
-    barrier, out = ctx.Barrier(2), ctx.Queue()
-    servers = [ctx.Process(target=_server_process, args=(cache, registry, meet, barrier, out)) for _ in range(2)]
+    barrier, out = ctx.Barrier(2, timeout=60), ctx.Queue()  # a failed server must not hold the other for ever
+    servers = [ctx.Process(target=_server_process, args=(cache, registry, job, barrier, out)) for _ in range(2)]
     for s in servers:
         s.start()
-    # 6 jobs of 0.4 s on 2 slots, plus forks on a busy machine; under a limit of one, the
-    # first job's 10 s wait for a partner (then a peak of 1) still ends well within this
-    peak, deadline = 0, time.monotonic() + 30
-    while any(s.is_alive() for s in servers):
-        assert time.monotonic() < deadline, "server processes still running"
-        peak = max(peak, len(job_processes()))
-        time.sleep(0.02)
+    start = time.monotonic()
+    peak, deadline, seen_two = 0, start + 60, None  # under a limit of one about 20 s: within this
+    try:
+        while any(s.is_alive() for s in servers):
+            now = time.monotonic()
+            assert now < deadline, "server processes still running"
+            peak = max(peak, len(job_processes()))
+            if peak >= 2 and seen_two is None:
+                seen_two = now
+            if not release.exists() and (now - start > RELEASE_S or (seen_two is not None and now - seen_two > HOLD_S)):
+                release.touch()
+            time.sleep(0.02)
+    finally:
+        for s in servers:
+            if s.is_alive():
+                s.terminate()
     results = [out.get(timeout=5) for _ in servers]
     assert all(s.exitcode == 0 for s in servers)
     assert all(None not in r[:3] for r in results), results

@@ -1,9 +1,12 @@
-"""`make test` runs the suite in two lanes (tests/conftest.py): the modules of APART in a
-worker of their own, everything else in the other, each lane whole. This checks the split the
-scheduler makes, so that a renamed module cannot silently fall back into the main lane."""
+"""`make test` runs the strict identification tests first, alone (Makefile STRICT_TESTS,
+scripts/run-tests.sh), then the rest of the suite in two lanes (tests/conftest.py): the modules
+of APART in a worker of their own, everything else in the other, each lane whole. This checks
+the split the scheduler makes, so that a renamed module cannot silently fall back into the main
+lane, and how the two runs are made and their exit statuses combined."""
 
 import os
 import posixpath
+import subprocess
 
 import pytest
 
@@ -38,13 +41,66 @@ def test_the_scheduler_puts_the_apart_modules_in_one_lane_and_the_rest_in_the_ot
     assert {sched._split_scope(i) for i in others} == {"suite"}
 
 
+def _makefile_strict_tests():
+    with open(os.path.join(ROOT, "Makefile")) as f:
+        lines = [line.split("?=", 1)[1].split() for line in f if line.startswith("STRICT_TESTS ?=")]
+    assert len(lines) == 1 and lines[0], "Makefile: one STRICT_TESTS ?= line naming the modules"
+    return lines[0]
+
+
 def test_the_strict_tests_the_makefile_runs_first_exist_and_have_a_lane_when_kept_in_the_lanes():
     # `make test` runs STRICT_TESTS alone before the lanes and ignores them there; a renamed
     # module would otherwise run in neither the first run (no such file) nor, when STRICT_TESTS=
     # keeps them in the lanes, in the lane of their own
-    with open(os.path.join(ROOT, "Makefile")) as f:
-        lines = [line.split("?=", 1)[1].split() for line in f if line.startswith("STRICT_TESTS ?=")]
-    assert len(lines) == 1 and lines[0], "Makefile: one STRICT_TESTS ?= line naming the modules"
-    for path in lines[0]:
+    for path in _makefile_strict_tests():
         assert os.path.isfile(os.path.join(ROOT, path)), path
         assert path in conftest.APART, path
+    with open(os.path.join(ROOT, "Makefile")) as f:
+        makefile = f.read()
+    assert 'STRICT_TESTS="$(STRICT_TESTS)"' in makefile and "bash scripts/run-tests.sh $(PYTEST_ARGS)" in makefile
+
+
+def _run_tests(tmp_path, first, rest, args=(), strict="tests/a.py tests/b.py"):
+    """scripts/run-tests.sh with a stand-in python whose first pytest run exits with ``first``
+    and whose second with ``rest``; (exit status, the argument lists each run got)."""
+    log = tmp_path / "runs"
+    fake = tmp_path / "python"
+    fake.write_text('#!/bin/sh\nprintf "%s|" "$@" >> "$LOG"; echo >> "$LOG"\n'
+                    'n=$(wc -l < "$LOG"); [ "$n" -eq 1 ] && [ -n "$STRICT_TESTS" ] && exit "$FIRST"; exit "$REST"\n')
+    fake.chmod(0o755)
+    env = {**os.environ, "PY": str(fake), "STRICT_TESTS": strict, "PYTEST_XDIST": "-n 2", "LOG": str(log),
+           "FIRST": str(first), "REST": str(rest)}
+    proc = subprocess.run(["bash", os.path.join(ROOT, "scripts", "run-tests.sh"), *args], env=env,
+                          capture_output=True, text=True, check=False)
+    runs = [line.rstrip("|").split("|") for line in log.read_text().splitlines()] if log.exists() else []
+    return proc.returncode, runs
+
+
+@pytest.mark.parametrize("first, rest, status", [
+    (0, 0, 0), (1, 0, 1), (0, 1, 1), (2, 1, 2),  # the first failing run's status
+    (1, 5, 1),  # a failing strict run is not hidden by a second run that selected nothing
+    (5, 0, 0), (0, 5, 0),  # a -k that selects tests of one run only
+    (5, 5, 5),  # nothing selected at all: pytest's own status
+])
+def test_the_two_runs_exit_statuses_combine_to_the_first_failure(tmp_path, first, rest, status):
+    code, runs = _run_tests(tmp_path, first, rest, args=["-k", "a and b"])
+    assert code == status
+    # the strict files first with the options, then the rest without them and with the options
+    assert runs == [["-m", "pytest", "tests/a.py", "tests/b.py", "-k", "a and b"],
+                    ["-m", "pytest", "-n", "2", "--ignore=tests/a.py", "--ignore=tests/b.py", "-k", "a and b"]]
+
+
+def test_exitfirst_skips_the_rest_after_a_failing_strict_run_only(tmp_path):
+    (tmp_path / "failed").mkdir()
+    (tmp_path / "passed").mkdir()
+    code, runs = _run_tests(tmp_path / "failed", 1, 0, args=["-x"])
+    assert code == 1 and len(runs) == 1
+    code, runs = _run_tests(tmp_path / "passed", 0, 0, args=["-x"])
+    assert code == 0 and len(runs) == 2
+
+
+def test_without_strict_tests_there_is_one_run_with_its_own_status(tmp_path):
+    for rest in (0, 1, 5):
+        (tmp_path / str(rest)).mkdir()
+        code, runs = _run_tests(tmp_path / str(rest), 0, rest, strict="")
+        assert code == rest and runs == [["-m", "pytest", "-n", "2"]]
