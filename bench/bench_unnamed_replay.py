@@ -53,8 +53,7 @@ AGREE_NATS = 1e-9
 
 
 #: the arrays a case's kept inputs must hold, per part (bench_discrepancy.save_misfit_inputs)
-KEYS = {"torsion": {"r_fit", "jac", "prec", "offset", "eta", "basis"},
-        "ramps": {"residual", "sensitivity", "covariance", "sample_variance", "basis", "share"}}
+KEYS = {part: set(names) for part, names in U.INPUT_KEYS.items()}
 
 
 def read_inputs(path) -> dict:

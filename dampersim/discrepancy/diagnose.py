@@ -404,8 +404,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             w = ramps_lik.run_ramps(runner, with_effect(cal, name, {info(name).magnitude: m}), campaign.ramps)
             cov = models["none"]["cov"]
             pad = [np.zeros(ramp_lik.residuals)] * (cov.shape[0] - len(ramp_lik.cols_x))
-            chi2 = ramp_lik.signature_gain(w, ramp_runs["none"], np.column_stack([*ramp_lik.cols_x, *pad]), cov)
             sig = ramp_lik.signature(w, ramp_runs["none"])
+            chi2 = ramp_lik.signature_chi2(sig, np.column_stack([*ramp_lik.cols_x, *pad]), cov)
             at = ramp_none if sig is None else misfit.ramp_signature_gain(ramp_lik.unnamed_inputs, sig,
                                                                           ramp_lik.noise_scale)
             return chi2, at, ramp_none

@@ -226,7 +226,11 @@ class RampLikelihood:
         uncertainty scale ``scale`` (default: ``noise_scale``, set by :meth:`settle`): what
         the calibration and the offsets cannot absorb (0 when a run failed or there are no
         samples)."""
-        d = self.signature(windups, base)
+        return self.signature_chi2(self.signature(windups, base), jac, cov, scale)
+
+    def signature_chi2(self, d, jac, cov, scale: float | None = None) -> float:
+        """:meth:`signature_gain` of a signature ``d`` already taken (:meth:`signature`; None:
+        0)."""
         if d is None:
             return 0.0
         scale = self.noise_scale if scale is None else scale

@@ -52,6 +52,10 @@ RAMP_DEGREE = 3
 RAMP_SDS_DEG = (0.0, 0.03, 0.1, 0.3, 1.0)
 #: a change of the sampled torque below this share of the ramp's largest one is a hold
 HOLD_SHARE = 0.1
+#: the arrays of a diagnosis's ``misfit_inputs``, per part: :func:`torsion_gain`'s arguments
+#: (as naming.Namer.unnamed_inputs gives them) and :func:`ramp_inputs`'s keys
+INPUT_KEYS = {"torsion": ("r_fit", "jac", "prec", "offset", "eta", "basis"),
+              "ramps": ("residual", "sensitivity", "covariance", "sample_variance", "basis", "share")}
 
 
 def legendre(u, degree: int) -> np.ndarray:
@@ -238,6 +242,6 @@ def ramp_signature_gain(inputs, d, scale: float, sds_deg=RAMP_SDS_DEG) -> float:
                                                    sds_deg)
 
 
-__all__ = ["MISFIT_PRIOR", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG", "HOLD_SHARE",
-           "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share", "ramp_direction",
-           "ramp_basis", "ramp_inputs", "ramp_gain_of", "gains", "ramp_signature_gain"]
+__all__ = ["MISFIT_PRIOR", "INPUT_KEYS", "combined", "TORSION_DEGREE", "TORSION_SDS", "RAMP_DEGREE", "RAMP_SDS_DEG",
+           "HOLD_SHARE", "legendre", "spread_gain", "torsion_basis", "torsion_gain", "signature_share",
+           "ramp_direction", "ramp_basis", "ramp_inputs", "ramp_gain_of", "gains", "ramp_signature_gain"]

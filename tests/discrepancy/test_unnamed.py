@@ -1,6 +1,7 @@
 """The unnamed smooth misfit's evidence (no simulation: residuals and windups are given)."""
 
 import dataclasses
+import inspect
 import math
 
 import numpy as np
@@ -263,6 +264,9 @@ def test_a_diagnosis_with_a_ramp_keeps_the_misfit_inputs_and_reads_the_ramps_in_
     d = diagnose(camp, workers=1, candidates=["clutch_slip", "turbine_drag"], recommend=False)
     kept = d.misfit_inputs["ramps"]
     assert kept is not None and U.ramp_gain_of(kept, SCALES) == d.likelihood["unnamed_misfit"]["ramps"]
+    # the kept parts hold exactly the arrays INPUT_KEYS names (what the replay reads back)
+    assert set(kept) == set(U.INPUT_KEYS["ramps"]) and set(d.misfit_inputs["torsion"]) == set(U.INPUT_KEYS["torsion"])
+    assert set(inspect.signature(U.torsion_gain).parameters) - {"sds"} == set(U.INPUT_KEYS["torsion"])
     assert set(seen) == {"clutch_slip", "turbine_drag"}
     at_none = {r[1] for rs in seen.values() for r in rs}
     assert len(at_none) == 1 and at_none.pop() < 0.0  # one D at none, below 0: the misfit has nothing to follow
