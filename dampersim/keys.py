@@ -4,10 +4,11 @@ A key is the SHA-256 of a canonical JSON document (:func:`canonical`) that holds
 
 * what was asked for (parameter set, excitation, page state, options: the caller's parts);
 * the package version;
-* the platform: Python, numpy, scipy, numba and llvmlite versions and the CPU that numba
-  compiles for. Fast-math rounding differs between CPU targets and compiler versions, and in a
-  chaotic regime a last-bit difference moves an order amplitude by several per cent, so a
-  result computed elsewhere is not served as if it were this machine's;
+* the platform: Python, numpy, scipy, numba and llvmlite versions, the CPU that numba
+  compiles for and numba's code generation settings. Fast-math rounding differs between CPU
+  targets, optimisation levels and compiler versions, and in a chaotic regime a last-bit
+  difference moves an order amplitude by several per cent, so a result computed elsewhere
+  is not served as if it were this machine's;
 * a hash of the source of every dampersim module the result's code can reach
   (:func:`source_hash`). The set of modules is found by reading the import statements of
   the package's own files (imports inside functions included), starting from the module
@@ -193,7 +194,8 @@ def _version(dist: str) -> str:
 @functools.lru_cache(maxsize=1)
 def platform() -> dict:
     """What besides our source can change a computed number: the Python, numpy, scipy
-    (filters), numba and llvmlite versions, the CPU features numpy dispatches on, the
+    (filters), numba and llvmlite versions, numba's code generation settings
+    (:func:`numba_codegen`), the CPU features numpy dispatches on, the
     OpenBLAS kernels (:func:`blas_kernels`) and the CPU numba compiles for (name and
     feature string: the host's unless NUMBA_CPU_NAME or NUMBA_CPU_FEATURES choose another
     target, as numba's own code generator reads them; a kernel built for a generic x86-64
@@ -218,6 +220,7 @@ def platform() -> dict:
         numpy_cpu = ["unknown"]
     return {
         "python": _platform.python_version(),
+        "numba_codegen": numba_codegen(),
         "machine": _platform.machine(),
         "numpy": np.__version__,
         "scipy": _version("scipy"),
@@ -227,6 +230,25 @@ def platform() -> dict:
         "numpy_cpu": numpy_cpu,
         "blas": blas_kernels(),
     }
+
+
+def numba_codegen() -> dict:
+    """numba's settings that change the machine code of a kernel on a given CPU, as its
+    config read them from the environment at import: the optimisation level (NUMBA_OPT),
+    the loop and SLP vectorisers (NUMBA_LOOP_VECTORIZE, NUMBA_SLP_VECTORIZE) and whether
+    the kernels run as Python instead (NUMBA_DISABLE_JIT). With the kernels' reassociating
+    fast-math (:data:`dampersim.solver.kernels.JIT`) each can change the order of the sums,
+    so the last bits of every step, and a chaotic run's orders with them. The kernels'
+    on-disk cache is kept apart by the same settings
+    (:mod:`dampersim.solver.numba_cache`)."""
+    try:
+        from numba.core import config as numba_config
+
+        return {"opt": int(numba_config.OPT), "disable_jit": bool(numba_config.DISABLE_JIT),
+                "loop_vectorize": bool(numba_config.LOOP_VECTORIZE),
+                "slp_vectorize": bool(numba_config.SLP_VECTORIZE)}
+    except Exception as exc:  # numba missing or its config moved: say so in the key
+        return {"error": type(exc).__name__}
 
 
 def blas_kernels() -> dict:
@@ -300,6 +322,7 @@ __all__ = [
     "key_document",
     "make_key",
     "module_closure",
+    "numba_codegen",
     "platform",
     "source_hash",
     "source_hash_at",

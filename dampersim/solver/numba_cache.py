@@ -3,13 +3,16 @@
 numba's ``cache=True`` checks only the source file of the function it loads. A change in
 a jitted helper imported from another module, or in a module-level constant imported from
 a layout module (numba freezes global constants into the machine code), leaves the cached
-machine code in use: stale results with no error. :func:`guard` registers a package
+machine code in use: stale results with no error. Nor does it tell numba's code generation
+settings apart: code compiled at one optimisation level is loaded at another. :func:`guard` registers a package
 directory with a key, the SHA-256 of every ``.py`` file of the package plus the given
 extra files (the layout modules whose constants the kernels freeze in). Every function
 defined in a file of that directory is then cached in a sub-folder named after the key,
-``src-<key>``, inside the folder numba would have picked itself (``NUMBA_CACHE_DIR`` when
+``src-<key>-<settings>``, inside the folder numba would have picked itself (``NUMBA_CACHE_DIR`` when
 set, else ``__pycache__`` beside the source, else numba's user-wide cache). A changed
-source therefore compiles afresh, and two source versions never share cache entries.
+source therefore compiles afresh, and two source versions never share cache entries; nor
+do two settings of NUMBA_OPT, NUMBA_LOOP_VECTORIZE or NUMBA_SLP_VECTORIZE
+(:func:`settings_tag`).
 
 The locator is found by numba when a function is decorated, so :func:`guard` must run
 before the package's modules are imported: call it in the package's ``__init__``. A
@@ -23,6 +26,8 @@ import os
 from pathlib import Path
 
 from numba.core import caching
+
+from dampersim.keys import numba_codegen
 
 #: real path of a guarded package directory -> its source key
 _KEYS: dict[str, str] = {}
@@ -40,14 +45,26 @@ def source_key(package_dir, extra_files=()) -> str:
     return h.hexdigest()
 
 
+def settings_tag() -> str:
+    """The code generation settings of :func:`dampersim.keys.numba_codegen` that compiled code
+    depends on, as a folder name suffix: ``O3-loop`` is numba's default (optimisation level
+    3, loop vectoriser on, SLP vectoriser off), ``O0`` level 0 with both off."""
+    s = numba_codegen()
+    if "error" in s:
+        return "unknown"
+    return f"O{s['opt']}" + ("-loop" if s["loop_vectorize"] else "") + ("-slp" if s["slp_vectorize"] else "")
+
+
 class KeyedCacheLocator(caching._CacheLocator):
     """Cache locator for functions of a guarded package: the folder numba's own locators
-    would choose, plus a ``src-<key>`` sub-folder; the index is stamped with the key."""
+    would choose, plus a ``src-<key>-<settings>`` sub-folder (:func:`settings_tag`); the
+    index is stamped with the key."""
 
-    def __init__(self, inner, key: str):
+    def __init__(self, inner, key: str, py_file: str):
         self._inner = inner
         self._key = key
-        self._cache_path = os.path.join(inner.get_cache_path(), "src-" + key[:20])
+        self._py_file = py_file  # numba names it in its warning of a function it cannot cache
+        self._cache_path = os.path.join(inner.get_cache_path(), f"src-{key[:20]}-{settings_tag()}")
 
     def get_cache_path(self):
         return self._cache_path
@@ -69,7 +86,7 @@ class KeyedCacheLocator(caching._CacheLocator):
             inner = base.from_function(py_func, py_file)
             if inner is None:
                 continue
-            self = cls(inner, key)
+            self = cls(inner, key, py_file)
             try:
                 self.ensure_cache_path()
             except OSError:
@@ -88,4 +105,4 @@ def guard(package_dir, extra_files=()) -> str:
     return key
 
 
-__all__ = ["guard", "source_key", "KeyedCacheLocator"]
+__all__ = ["guard", "source_key", "settings_tag", "KeyedCacheLocator"]

@@ -63,10 +63,11 @@ def _toy(root: Path) -> None:
     (root / "toy_layout.py").write_text("K = 1.0\n")
 
 
-def _run(root: Path, cache: Path, guard: bool) -> tuple[float, str]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONDONTWRITEBYTECODE="1", TOY_GUARD="1" if guard else "0",
-               PYTHONPATH=os.pathsep.join([str(root), str(REPO)]))
-    env.pop("NUMBA_CACHE_LOCATOR_CLASSES", None)
+def _run(root: Path, cache: Path, guard: bool, **settings) -> tuple[float, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_LOCATOR_CLASSES", "NUMBA_OPT",
+                                                            "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE")}
+    env.update(NUMBA_CACHE_DIR=str(cache), PYTHONDONTWRITEBYTECODE="1", TOY_GUARD="1" if guard else "0",
+               PYTHONPATH=os.pathsep.join([str(root), str(REPO)]), **settings)
     out = subprocess.run([sys.executable, "-c", RUN], cwd=root, env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     value, how = out.stdout.split()
@@ -96,6 +97,28 @@ def test_without_the_guard_numba_serves_stale_code(tmp_path):
     assert _run(root, cache, guard=False) == (7.0, "hit")  # stale: 11.0 is right
 
 
+def test_another_optimisation_level_compiles_apart(tmp_path):
+    # numba keys its cache by signature and CPU only: code compiled at level 3 is loaded under
+    # NUMBA_OPT=1 (the control, unguarded), so a run that asks for other machine code (and, with
+    # the kernels' reassociating fast-math, other last bits) silently gets the old one
+    root, cache = tmp_path / "src", tmp_path / "numba"
+    _toy(root)
+    assert _run(root, cache, guard=False) == (7.0, "miss")
+    assert _run(root, cache, guard=False, NUMBA_OPT="1") == (7.0, "hit")
+    assert _run(root, cache, guard=True) == (7.0, "miss")
+    assert _run(root, cache, guard=True, NUMBA_OPT="1") == (7.0, "miss")  # its own folder
+    assert _run(root, cache, guard=True, NUMBA_OPT="1") == (7.0, "hit")
+    assert _run(root, cache, guard=True, NUMBA_SLP_VECTORIZE="1") == (7.0, "miss")
+    assert _run(root, cache, guard=True) == (7.0, "hit")  # the default's entry is still there
+    # src-<key>-<settings>: one folder per setting, the same source key
+    folders = {tuple(p.parent.name.split("-", 2)[1:]) for p in cache.rglob("calc.f-*.nbi")
+               if p.parent.name.startswith("src-")}
+    assert {tag for _, tag in folders} == {"O3-loop", "O1-loop", "O3-loop-slp"} and len({k for k, _ in folders}) == 1
+    # at level 0 numba cannot cache the function (its code keeps dynamic globals) and says so
+    # in a warning naming the source file, which the guarded locator must be able to give
+    assert _run(root, cache, guard=True, NUMBA_OPT="0") == (7.0, "miss")
+
+
 def test_every_kernel_is_cached_under_the_source_key():
     for name in ("fastmath", "springs", "contacts", "effects", "friction", "forces", "engine", "excitation", "integrate"):
         __import__(f"dampersim.solver.kernels.{name}")
@@ -109,7 +132,7 @@ def test_every_kernel_is_cached_under_the_source_key():
         for obj in vars(mod).values():
             if isinstance(obj, numba.core.registry.CPUDispatcher) and obj.__module__ == mod.__name__:
                 path = Path(obj._cache.cache_path)
-                assert path.name == "src-" + key[:20], (mod.__name__, obj.__name__, path)
+                assert path.name == f"src-{key[:20]}-{numba_cache.settings_tag()}", (mod.__name__, obj.__name__, path)
                 if numba.config.CACHE_DIR:  # NUMBA_CACHE_DIR stays the root
                     assert str(path).startswith(os.path.abspath(numba.config.CACHE_DIR)), path
                 found += 1
