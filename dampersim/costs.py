@@ -17,27 +17,27 @@ bytes [B], both from the parameter set alone (no layout, no array is built):
   rate) and the result's copies of its columns, the segment record (nodes at the segment
   sample rate) and the state vectors.
 
-Measured rate (``python bench/bench_core.py --quick`` and the same run with 64/64
-segments at 1e-6 s, on the 2-core development machine, friction on): 18.6 ns per
-step·DOF, i.e. 5.3e7 to 5.9e7 step·DOF per second of one core; friction off is about
-twice as fast. :data:`STEP_DOF_PER_SECOND` takes the slower, rounded figure, 5e7, so a
-time estimate errs long. The default budgets follow from it: :data:`DEFAULT_AUTOSTART`
-2.5e9 step·DOF (about 50 s of one core: every default page state, the largest being the
-Maps page's 80 points at 2.15e9 with the default 48/16 segments, starts by itself) and
-:data:`DEFAULT_LIMIT` 7e10 step·DOF (about 23 min of one core: the bundled example
-campaign's diagnosis, bounded at 6.55e10 by :func:`diagnosis_cost`, is admitted, 6 % below it;
-the limit applies to every kind of request). The bound is work, not time, and the rate
-is an older measurement: the same command now gives 47 ns per
-step·DOF on the same machine (2.1e7 per second; docs/model.md §13 says why the code is not
-the cause), and that diagnosis took 878 s on 2 idle cores for 1872 of its 3039
-bounded runs of about 2.2e7 step·DOF each (with the leading effect's re-calibration
-at each iteration's robust weights; 955 s for 2024 runs at the calibrated model's
-weights, commit 0d89dbf; 820 s for 1792 runs before that step, commit 81b62b5,
-2.4e7), about 2.3e7 step·DOF per core second. So every
-time this module derives from work reads 2.1 to 2.4 times short on that machine; the
-budgets, in step·DOF, are unaffected. Both are server settings, read from the
-environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET`` and ``DAMPERSIM_AUTOSTART_BUDGET`` in
-step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes (default 1 GiB).
+Measured rate (``python bench/bench_cost_rate.py``: whole runs of each kind the server
+admits by estimate, estimated work over measured wall time, one core, warm kernels): 1.6e7
+to 4.0e7 step·DOF per second on the 2-core development machine, whose speed moves by up
+to about 1.8 times within an hour (three runs within half an hour: a diagnosis model run
+1.6e7, 2.9e7 and 2.7e7, the Explorer's default point 1.8e7, 2.2e7 and 2.0e7, a 25 s ramp
+2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library). :data:`STEP_DOF_PER_SECOND` takes the
+slowest, rounded down, 1.5e7, so a time estimate errs long, by up to about 2.6 times when
+the machine runs fast. It was 5e7 before, from 18.6 ns per step·DOF measured before the
+fitted friction step and on a faster day, and every time estimate read 2 to 3 times short;
+:data:`FOREGROUND_WORK`, a minute at the rate, fell with it from 3e9 to 9e8 step·DOF.
+
+The budgets are work, not time, and kept their values when the rate was corrected:
+:data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
+default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
+48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7e10 step·DOF (about 78 min of
+one core at the rate: the bundled example campaign's diagnosis, bounded at 6.55e10 by
+:func:`diagnosis_cost`, is admitted, 6 % below it, and took 878 s on 2 idle cores for 1872
+of its 3039 bounded runs; the limit applies to every kind of request). Both are server
+settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
+and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
+(default 1 GiB).
 
 :func:`admit` applies them: above the limit a :class:`BudgetError` (an
 :class:`~dampersim.errors.InputError`) gives the estimate and the limit; above the
@@ -56,8 +56,9 @@ from dataclasses import dataclass
 from dampersim.errors import InputError
 from dampersim.solver.layout import NREC
 
-#: Kernel speed [step·DOF per second of one core], measured as the module docstring says.
-STEP_DOF_PER_SECOND = 5.0e7
+#: Kernel speed [step·DOF per second of one core]: the slowest whole-run rate measured, rounded
+#: down (the module docstring).
+STEP_DOF_PER_SECOND = 1.5e7
 #: Most work [step·DOF] a page computes in the request thread while the browser waits
 #: (Explorer, Segments), whatever the server's budget: about 60 s of one core, so one
 #: such request holds its thread for about a minute at most. Larger points belong to the
@@ -70,9 +71,9 @@ FOREGROUND_WORK = 60.0 * STEP_DOF_PER_SECOND
 #: call time; ``python app.py`` sets it to half of ``--threads`` unless it is set).
 DEFAULT_FOREGROUND_SLOTS = max(1, 8 // 2)
 FOREGROUND_SLOTS_ENV = "DAMPERSIM_FOREGROUND_SLOTS"
-#: Default autostart budget [step·DOF]: about 50 s of one core.
+#: Default autostart budget [step·DOF]: about 2.8 min of one core at STEP_DOF_PER_SECOND.
 DEFAULT_AUTOSTART = 2.5e9
-#: Default limit [step·DOF]: about 23 minutes of one core.
+#: Default limit [step·DOF]: about 78 minutes of one core at STEP_DOF_PER_SECOND.
 DEFAULT_LIMIT = 7.0e10
 #: Default memory limit of one request [B]: 1 GiB.
 DEFAULT_BYTES_LIMIT = float(2**30)
@@ -235,11 +236,12 @@ def ramp_cost(system, duration: float, n_speeds: int = 1, what: str | None = Non
 
 #: Work of one pulsation-generator DOF per step, in damper step·DOF: each generator DOF
 #: carries a crank section with its cylinder (gas law, ring and bearing friction), so it
-#: costs more than a damper DOF. Measured on the development machine (default generator,
-#: 2.6 s at 1e-5 s, 8 DOF, 1500 rpm): 0.12 s alone, i.e. 1.8e7 generator step·DOF per
-#: second against the damper's 5.3e7 to 5.9e7; the ratio, 2.9 to 3.3, rounded up to 3.5 so
-#: the estimate errs long.
-GENERATOR_DOF_WEIGHT = 3.5
+#: costs more than a damper DOF. Measured by ``python bench/bench_cost_rate.py`` (default
+#: generator alone, 2.6 s at 1e-5 s, 8 DOF, 1500 rpm, against a sweep point and a diagnosis
+#: run at 48/16 in the same process): 0.93 to 1.40 times a damper DOF-step in three runs,
+#: rounded up to 1.5 so the estimate errs long. (It was 3.5, measured against the damper's
+#: kernel before the fitted friction step made the damper's step about 45 % dearer.)
+GENERATOR_DOF_WEIGHT = 1.5
 
 
 def pulsation_cost(coupled: bool = False, runs: int = 1, system=None, generator=None, duration: float | None = None,
