@@ -7,23 +7,26 @@ wall time: the step·DOF per second this machine achieves on it, against
 "about N min of one core", ``FOREGROUND_WORK``) divides by. A ratio below 1 means the
 estimates read short.
 
-    python bench/bench_cost_rate.py              # six kinds, best and median of 3 runs
+    python bench/bench_cost_rate.py              # seven kinds, best and median of 3 runs
     python bench/bench_cost_rate.py --repeats 5
 
 The last lines compare a pulsation-generator DOF-step with a damper one (the weight
 ``costs.GENERATOR_DOF_WEIGHT`` a generator DOF carries in the work).
 
-Kinds: the Explorer's default test point (48/16 segments, 2.6 s at 1/120 000 s, with its
-segment record), the same point at the thesis's 18/8 segments, a sweep point (the same run
-without the segment record, as sweeps make them), the full-450 hysteresis ramp protocol at
-1500 rpm, the pulsation generator alone (default settings, 1500 rpm) and one diagnosis model
-run (a 1 s recorded point after the drive's lead-in, 48/16, as the Discrepancy page runs
-them).
+Kinds: a test point as the Explorer computes it (bench_core.py's point, orders 2 and 4 at
+1500 rpm; 48/16 segments, 2.6 s at 1/120 000 s, with its segment record), the same point at
+the thesis's 18/8 segments, a sweep point (the same run without the segment record, as
+sweeps make them), the full-450 hysteresis ramp protocol at 1500 rpm (30 s), the pulsation
+generator alone and coupled to the damper and rig (default settings, 1500 rpm, as the
+Pulsation page computes them) and one diagnosis model run (a 1 s recorded point after the
+drive's lead-in, 48/16, as the Discrepancy page runs them). The process is pinned to one
+core where the system allows it (Linux), so no library spreads a run over two.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import tempfile
 import time
@@ -62,6 +65,7 @@ def _kinds(tmp: Path):
         ("ramp full-450 48/16", costs.ramp_cost(base, ramp.duration), lambda: ds.simulate(base, ramp,
                                                                                        record_segments=False)),
         ("pulsation alone", costs.pulsation_cost(), lambda: simulate_pulsation(SPEED)),
+        ("pulsation coupled", costs.pulsation_cost(coupled=True), lambda: simulate_pulsation(SPEED, coupled=True)),
         ("diagnosis run 48/16, 1 s", costs.point_cost(sysd, costs.DIAGNOSIS_LEAD_IN_S + 1.0, record_segments=False),
          lambda: drive.simulate_point(sysd, point)),
     ]
@@ -72,6 +76,8 @@ def main(argv=None) -> None:
     ap.add_argument("--repeats", type=int, default=3, help="timed runs per kind (after one warm-up run)")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     print(f"costs.STEP_DOF_PER_SECOND = {costs.STEP_DOF_PER_SECOND:.2e}")
     print(f"{'kind':28s} {'work':>9s} {'best s':>8s} {'median s':>9s} {'rate (median)':>14s} {'rate / constant':>15s}")
     medians = {}

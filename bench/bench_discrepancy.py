@@ -58,7 +58,7 @@ from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import EFFECTS, NAMES
 from dampersim.discrepancy.synth import plan, synthesize
 from dampersim.jsonsafe import jsonable
-from dampersim.keys import platform
+from dampersim.keys import NUMBA_CODEGEN_ENV, platform
 
 #: diagnosis keys kept per case (plus every gap_*_nm key)
 KEEP = ("verdict", "effect", "effects", "effect_parameters", "posterior", "detectability", "outliers",
@@ -78,8 +78,8 @@ HARD_OUT_OF_LIBRARY = (("rig_shaft", 3), ("rig_inertia", 2), ("friction_shape", 
 #: environment settings that change how the same arithmetic is compiled or dispatched, and so
 #: a campaign's figures (docs/discrepancy.md, Known limits, "A campaign's figures move with the
 #: machine's rounding"; bench_float_paths.py varies three of them)
-FLOAT_PATH_ENV = ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", "NUMBA_ENABLE_AVX", "NPY_DISABLE_CPU_FEATURES",
-                  "NPY_ENABLE_CPU_FEATURES", "OPENBLAS_CORETYPE")
+FLOAT_PATH_ENV = ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", "NUMBA_ENABLE_AVX", *NUMBA_CODEGEN_ENV,
+                  "NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES", "OPENBLAS_CORETYPE")
 NOISE_DB = (-6.0, 3.0)  # sensor noise range of the hard matrix [dB re 1 N m]
 PERTURB = 0.1  # estimated-parameter perturbation of the hard matrix (synth's default)
 

@@ -21,12 +21,11 @@ Measured rate (``python bench/bench_cost_rate.py``: whole runs of each kind the 
 admits by estimate, estimated work over measured wall time, one core, warm kernels): 1.6e7
 to 4.0e7 step·DOF per second on the 2-core development machine, whose speed moves by up
 to about 1.8 times within an hour (three runs within half an hour: a diagnosis model run
-1.6e7, 2.9e7 and 2.7e7, the Explorer's default point 1.8e7, 2.2e7 and 2.0e7, a 25 s ramp
-2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library). :data:`STEP_DOF_PER_SECOND` takes the
+1.6e7, 2.9e7 and 2.7e7, a test point as the Explorer runs it 1.8e7, 2.2e7 and 2.0e7, a
+30 s ramp 2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library). :data:`STEP_DOF_PER_SECOND` takes the
 slowest, rounded down, 1.5e7, so a time estimate errs long, by up to about 2.6 times when
 the machine runs fast. It was 5e7 before, from 18.6 ns per step·DOF measured before the
-fitted friction step and on a faster day, and every time estimate read 2 to 3 times short;
-:data:`FOREGROUND_WORK`, a minute at the rate, fell with it from 3e9 to 9e8 step·DOF.
+fitted friction step and on a faster day, and every time estimate read 2 to 3 times short.
 
 The budgets are work, not time, and kept their values when the rate was corrected:
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
@@ -60,11 +59,16 @@ from dampersim.solver.layout import NREC
 #: down (the module docstring).
 STEP_DOF_PER_SECOND = 1.5e7
 #: Most work [step·DOF] a page computes in the request thread while the browser waits
-#: (Explorer, Segments), whatever the server's budget: about 60 s of one core, so one
-#: such request holds its thread for about a minute at most. Larger points belong to the
-#: command line (``dampersim simulate``). How many run at once is bounded separately by
-#: :func:`foreground_slot`, so they never take every request thread.
-FOREGROUND_WORK = 60.0 * STEP_DOF_PER_SECOND
+#: (Explorer, Segments), whatever the server's budget: about 3.3 min of one core at
+#: STEP_DOF_PER_SECOND, 1.3 to 3.1 min at the rates measured (the module docstring), so one
+#: such request holds its thread for a few minutes at most. It was set as 60 s at the old
+#: rate of 5e7 and kept when the rate was corrected: above DEFAULT_AUTOSTART, so a point
+#: between the two waits for its Run button, and above the Explorer's largest repeat at the
+#: default duration (32 runs of the default point, 8.6e8; with the spread check 96 runs'
+#: worth, 2.6e9, which waits for Run). Larger points
+#: belong to the command line (``dampersim simulate``). How many run at once is bounded
+#: separately by :func:`foreground_slot`, so they never take every request thread.
+FOREGROUND_WORK = 3.0e9
 #: Foreground computations running at once in one server process, by default: half of
 #: ``app.py``'s 8 request threads, so the other half always answers page loads, cache
 #: hits, job polls and static files. Setting: ``DAMPERSIM_FOREGROUND_SLOTS`` (read at
@@ -414,8 +418,11 @@ def budgets() -> Budgets:
     ``DAMPERSIM_AUTOSTART_BUDGET`` [step·DOF], ``DAMPERSIM_MEMORY_BUDGET`` [B]; unset
     ones take the defaults. An autostart budget above the limit is lowered to the limit.
     Raises InputError naming the variable, its value and what is accepted."""
-    limit = _env_number(BUDGET_ENV, DEFAULT_LIMIT, "step·DOF", f"{DEFAULT_LIMIT:.1e} (about 23 min of one core)")
-    auto = _env_number(AUTOSTART_ENV, DEFAULT_AUTOSTART, "step·DOF", f"{DEFAULT_AUTOSTART:.1e} (about 50 s of one core)")
+    def example(work):
+        return f"{work:.1e} (about {duration_text(work / STEP_DOF_PER_SECOND)} of one core)"
+
+    limit = _env_number(BUDGET_ENV, DEFAULT_LIMIT, "step·DOF", example(DEFAULT_LIMIT))
+    auto = _env_number(AUTOSTART_ENV, DEFAULT_AUTOSTART, "step·DOF", example(DEFAULT_AUTOSTART))
     mem = _env_number(BYTES_ENV, DEFAULT_BYTES_LIMIT, "bytes", f"{int(DEFAULT_BYTES_LIMIT)} (1 GiB)")
     return Budgets(limit=limit, autostart=min(auto, limit), bytes_limit=mem)
 

@@ -232,19 +232,27 @@ def platform() -> dict:
     }
 
 
+#: The environment variables of numba's code generation settings (:func:`numba_codegen`).
+NUMBA_CODEGEN_ENV = ("NUMBA_OPT", "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE", "NUMBA_DISABLE_JIT")
+
+
 def numba_codegen() -> dict:
-    """numba's settings that change the machine code of a kernel on a given CPU, as its
-    config read them from the environment at import: the optimisation level (NUMBA_OPT),
-    the loop and SLP vectorisers (NUMBA_LOOP_VECTORIZE, NUMBA_SLP_VECTORIZE) and whether
-    the kernels run as Python instead (NUMBA_DISABLE_JIT). With the kernels' reassociating
-    fast-math (:data:`dampersim.solver.kernels.JIT`) each can change the order of the sums,
-    so the last bits of every step, and a chaotic run's orders with them. The kernels'
-    on-disk cache is kept apart by the same settings
-    (:mod:`dampersim.solver.numba_cache`)."""
+    """numba's settings that change the machine code of a kernel on a given CPU
+    (:data:`NUMBA_CODEGEN_ENV`): the optimisation level (NUMBA_OPT: 0 to 3, or ``"max"``, level
+    3 with an extra pass), the loop and SLP vectorisers (NUMBA_LOOP_VECTORIZE,
+    NUMBA_SLP_VECTORIZE) and whether the kernels run as Python instead (NUMBA_DISABLE_JIT).
+    With the kernels' reassociating fast-math (:data:`dampersim.solver.kernels.JIT`) each can
+    change the order of the sums, so the last bits of every step, and a chaotic run's orders
+    with them. Read from numba's config as it stands; numba reads the environment again at
+    each compilation, but a key (:func:`platform`, read once per process) and the kernels'
+    on-disk cache folder (:mod:`dampersim.solver.numba_cache`, fixed when a kernel is
+    decorated) follow the settings the process started with, so set them before it starts."""
     try:
         from numba.core import config as numba_config
 
-        return {"opt": int(numba_config.OPT), "disable_jit": bool(numba_config.DISABLE_JIT),
+        opt = numba_config.OPT
+        return {"opt": "max" if getattr(opt, "is_opt_max", False) else int(opt),
+                "disable_jit": bool(numba_config.DISABLE_JIT),
                 "loop_vectorize": bool(numba_config.LOOP_VECTORIZE),
                 "slp_vectorize": bool(numba_config.SLP_VECTORIZE)}
     except Exception as exc:  # numba missing or its config moved: say so in the key
@@ -322,6 +330,7 @@ __all__ = [
     "key_document",
     "make_key",
     "module_closure",
+    "NUMBA_CODEGEN_ENV",
     "numba_codegen",
     "platform",
     "source_hash",

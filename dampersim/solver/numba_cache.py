@@ -12,7 +12,8 @@ defined in a file of that directory is then cached in a sub-folder named after t
 set, else ``__pycache__`` beside the source, else numba's user-wide cache). A changed
 source therefore compiles afresh, and two source versions never share cache entries; nor
 do two settings of NUMBA_OPT, NUMBA_LOOP_VECTORIZE or NUMBA_SLP_VECTORIZE
-(:func:`settings_tag`).
+(:func:`settings_tag`). Folders of earlier sources or settings are left in place, not
+cleaned up.
 
 The locator is found by numba when a function is decorated, so :func:`guard` must run
 before the package's modules are imported: call it in the package's ``__init__``. A
@@ -48,7 +49,8 @@ def source_key(package_dir, extra_files=()) -> str:
 def settings_tag() -> str:
     """The code generation settings of :func:`dampersim.keys.numba_codegen` that compiled code
     depends on, as a folder name suffix: ``O3-loop`` is numba's default (optimisation level
-    3, loop vectoriser on, SLP vectoriser off), ``O0`` level 0 with both off."""
+    3, loop vectoriser on, SLP vectoriser off), ``O1-loop`` NUMBA_OPT=1 alone, ``Omax-loop``
+    NUMBA_OPT=max, ``O3-loop-slp`` the SLP vectoriser added to the default."""
     s = numba_codegen()
     if "error" in s:
         return "unknown"

@@ -271,6 +271,27 @@ def test_every_default_page_state_starts_by_itself(page):
     assert costs.admit(state_cost(page, resolve_system(state["params"]), state)) == "run"
 
 
+def test_the_explorer_s_largest_repeat_is_admitted_in_the_foreground():
+    # the foreground limit lies above the autostart budget, so an Explorer point between the two
+    # waits for Run rather than being refused; and the field's largest repeat at the default
+    # duration (32 runs, and with the spread check 32 more at half the step) is admitted: the first
+    # runs by itself, the second waits for Run (costs.FOREGROUND_WORK)
+    from dampersim.views.params import resolve_system
+    from dampersim.views.state import parse_query, state_cost
+
+    assert costs.FOREGROUND_WORK > costs.DEFAULT_AUTOSTART
+    state, _ = parse_query("explorer", {"repeat": "32"})
+    system = resolve_system(state["params"])
+    assert state["repeat"] == 32
+    assert costs.admit(state_cost("explorer", system, state), foreground=True) == "run"
+    assert costs.admit(state_cost("explorer", system, {**state, "spread_check": True}), foreground=True) == "ask"
+    # the error of a bad budget gives the default's time at the rate, not a figure kept by hand
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(costs.BUDGET_ENV, "x")
+        with pytest.raises(InputError, match=r"7\.0e\+10 \(about 78 min of one core\)"):
+            costs.budgets()
+
+
 @pytest.mark.parametrize("best", ["below", "inside"])
 def test_ramp_sizing_replays_at_most_the_counted_runs(monkeypatch, best):
     """ramp_models.size_by_ramps's replays of the ramps, counted on a fake ramp likelihood

@@ -142,7 +142,8 @@ def test_explorer_refuses_points_too_large_to_compute_while_the_browser_waits(pa
     monkeypatch.setenv(costs.BYTES_ENV, str(64 * 2**30))
     no_compute(monkeypatch, E, "explorer_view")
     ks, amps, phs = rows()
-    params = {"set": None, "overrides": {"solver.time_step": 1e-7}}  # 2e8 steps of 86 DOFs: about 6 minutes of one core
+    # 2e8 steps of 86 DOFs: about 19 minutes of one core at costs.STEP_DOF_PER_SECOND
+    params = {"set": None, "overrides": {"solver.time_step": 1e-7}}
     out, text = bounded(E.explorer_outputs, 1500, 200, ks, amps, phs, 20.0, [], [], "pi", [], params, run=True)
     assert out["error"] and "dampersim simulate" in text
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numba
 
 import dampersim
+from dampersim.keys import NUMBA_CODEGEN_ENV
 from dampersim.solver import kernels, numba_cache
 
 REPO = Path(dampersim.__file__).resolve().parent.parent
@@ -64,8 +65,7 @@ def _toy(root: Path) -> None:
 
 
 def _run(root: Path, cache: Path, guard: bool, **settings) -> tuple[float, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_LOCATOR_CLASSES", "NUMBA_OPT",
-                                                            "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE")}
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_LOCATOR_CLASSES", *NUMBA_CODEGEN_ENV)}
     env.update(NUMBA_CACHE_DIR=str(cache), PYTHONDONTWRITEBYTECODE="1", TOY_GUARD="1" if guard else "0",
                PYTHONPATH=os.pathsep.join([str(root), str(REPO)]), **settings)
     out = subprocess.run([sys.executable, "-c", RUN], cwd=root, env=env, capture_output=True, text=True, timeout=120)
