@@ -23,7 +23,7 @@ to 4.0e7 step·DOF per second on the 2-core development machine, whose speed mov
 to about 1.8 times within an hour (three runs within half an hour: a diagnosis model run
 1.6e7, 2.9e7 and 2.7e7, a test point as the Explorer runs it 1.8e7, 2.2e7 and 2.0e7, a
 30 s ramp 2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library). :data:`STEP_DOF_PER_SECOND` takes the
-slowest, rounded down, 1.5e7, so a time estimate errs long, by up to about 2.6 times when
+slowest, rounded down, 1.5e7, so a time estimate errs long, by up to about 2.7 times when
 the machine runs fast. It was 5e7 before, from 18.6 ns per step·DOF measured before the
 fitted friction step and on a faster day, and every time estimate read 2 to 3 times short.
 
