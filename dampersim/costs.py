@@ -22,7 +22,8 @@ admits by estimate, estimated work over measured wall time, one core, warm kerne
 to 4.0e7 step·DOF per second on the 2-core development machine, whose speed moves by up
 to about 1.8 times within an hour (three runs within half an hour: a diagnosis model run
 1.6e7, 2.9e7 and 2.7e7, a test point as the Explorer runs it 1.8e7, 2.2e7 and 2.0e7, a
-30 s ramp 2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library). :data:`STEP_DOF_PER_SECOND` takes the
+30 s ramp 2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library; a fourth run, pinned to one
+core and with the coupled pulsation run, on 4eaf555: 1.7e7 to 2.4e7 over its seven kinds). :data:`STEP_DOF_PER_SECOND` takes the
 slowest, rounded down, 1.5e7, so a time estimate errs long, by up to about 2.7 times when
 the machine runs fast. It was 5e7 before, from 18.6 ns per step·DOF measured before the
 fitted friction step and on a faster day, and every time estimate read 2 to 3 times short.
@@ -242,7 +243,7 @@ def ramp_cost(system, duration: float, n_speeds: int = 1, what: str | None = Non
 #: carries a crank section with its cylinder (gas law, ring and bearing friction), so it
 #: costs more than a damper DOF. Measured by ``python bench/bench_cost_rate.py`` (default
 #: generator alone, 2.6 s at 1e-5 s, 8 DOF, 1500 rpm, against a sweep point and a diagnosis
-#: run at 48/16 in the same process): 0.93 to 1.40 times a damper DOF-step in three runs,
+#: run at 48/16 in the same process): 0.93 to 1.40 times a damper DOF-step in four runs,
 #: rounded up to 1.5 so the estimate errs long. (It was 3.5, measured against the damper's
 #: kernel before the fitted friction step made the damper's step about 45 % dearer.)
 GENERATOR_DOF_WEIGHT = 1.5
