@@ -23,10 +23,11 @@ to 4.0e7 step·DOF per second on the 2-core development machine, whose speed mov
 to about 1.8 times within an hour (three runs within half an hour: a diagnosis model run
 1.6e7, 2.9e7 and 2.7e7, a test point as the Explorer runs it 1.8e7, 2.2e7 and 2.0e7, a
 30 s ramp 2.3e7, 4.0e7 and 2.9e7; commit 3c38a79's library; a fourth run, pinned to one
-core and with the coupled pulsation run, on 4eaf555: 1.7e7 to 2.4e7 over its seven kinds). :data:`STEP_DOF_PER_SECOND` takes the
-slowest, rounded down, 1.5e7, so a time estimate errs long, by up to about 2.7 times when
-the machine runs fast. It was 5e7 before, from 18.6 ns per step·DOF measured before the
-fitted friction step and on a faster day, and every time estimate read 2 to 3 times short.
+core and with the coupled pulsation run, on 4eaf555: 1.7e7 to 2.4e7 over its seven
+kinds). :data:`STEP_DOF_PER_SECOND` takes the slowest, rounded down, 1.5e7, so a time
+estimate errs long, by up to about 2.7 times when the machine runs fast. It was 5e7
+before, from 18.6 ns per step·DOF measured before the fitted friction step and on a
+faster day, and every time estimate read 2 to 3 times short.
 
 The budgets are work, not time, and kept their values when the rate was corrected:
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
@@ -66,9 +67,9 @@ STEP_DOF_PER_SECOND = 1.5e7
 #: rate of 5e7 and kept when the rate was corrected: above DEFAULT_AUTOSTART, so a point
 #: between the two waits for its Run button, and above the Explorer's largest repeat at the
 #: default duration (32 runs of the default point, 8.6e8; with the spread check 96 runs'
-#: worth, 2.6e9, which waits for Run). Larger points
-#: belong to the command line (``dampersim simulate``). How many run at once is bounded
-#: separately by :func:`foreground_slot`, so they never take every request thread.
+#: worth, 2.6e9, which waits for Run). Larger points belong to the command line
+#: (``dampersim simulate``). How many run at once is bounded separately by
+#: :func:`foreground_slot`, so they never take every request thread.
 FOREGROUND_WORK = 3.0e9
 #: Foreground computations running at once in one server process, by default: half of
 #: ``app.py``'s 8 request threads, so the other half always answers page loads, cache

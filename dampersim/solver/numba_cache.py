@@ -4,16 +4,16 @@ numba's ``cache=True`` checks only the source file of the function it loads. A c
 a jitted helper imported from another module, or in a module-level constant imported from
 a layout module (numba freezes global constants into the machine code), leaves the cached
 machine code in use: stale results with no error. Nor does it tell numba's code generation
-settings apart: code compiled at one optimisation level is loaded at another. :func:`guard` registers a package
-directory with a key, the SHA-256 of every ``.py`` file of the package plus the given
-extra files (the layout modules whose constants the kernels freeze in). Every function
-defined in a file of that directory is then cached in a sub-folder named after the key,
-``src-<key>-<settings>``, inside the folder numba would have picked itself (``NUMBA_CACHE_DIR`` when
-set, else ``__pycache__`` beside the source, else numba's user-wide cache). A changed
-source therefore compiles afresh, and two source versions never share cache entries; nor
-do two settings of NUMBA_OPT, NUMBA_LOOP_VECTORIZE or NUMBA_SLP_VECTORIZE
-(:func:`settings_tag`). Folders of earlier sources or settings are left in place, not
-cleaned up.
+settings apart: code compiled at one optimisation level is loaded at another.
+:func:`guard` registers a package directory with a key, the SHA-256 of every ``.py`` file
+of the package plus the given extra files (the layout modules whose constants the kernels
+freeze in). Every function defined in a file of that directory is then cached in a
+sub-folder named after the key and the settings, ``src-<key>-<settings>``, inside the
+folder numba would have picked itself (``NUMBA_CACHE_DIR`` when set, else ``__pycache__``
+beside the source, else numba's user-wide cache). A changed source therefore compiles
+afresh, and two source versions never share cache entries; nor do two settings of
+NUMBA_OPT, NUMBA_LOOP_VECTORIZE or NUMBA_SLP_VECTORIZE (:func:`settings_tag`). Folders of
+earlier sources or settings are left in place, not cleaned up.
 
 The locator is found by numba when a function is decorated, so :func:`guard` must run
 before the package's modules are imported: call it in the package's ``__init__``. A
