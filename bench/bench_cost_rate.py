@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import sys
 import tempfile
 import time
 import warnings
@@ -41,10 +42,11 @@ from dampersim.discrepancy.synth import synthesize
 from dampersim.excitation import ramp_protocol
 from dampersim.parameters import at_thesis_segments, default_parameters
 from dampersim.simulation import simulate_pulsation
-from dampersim.units import rpm_to_rad_s
 
-SPEED = rpm_to_rad_s(1500)
-POINT = ds.OrderSum(speed=SPEED, mean_torque=200.0, orders=((2, 300.0, 0.0), (4, 100.0, 0.0)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_core import EXCITATION, SPEED  # noqa: E402 - bench_core.py's test point and its speed
+
+POINT = EXCITATION  # bench_core.py's test point: orders 2 and 4 at 1500 rpm
 DURATION = 2.6  # [s] a test point's simulated time ([thesis] §6.2.1)
 
 

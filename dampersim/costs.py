@@ -27,7 +27,8 @@ core and with the coupled pulsation run, on 4eaf555: 1.7e7 to 2.4e7 over its sev
 kinds). :data:`STEP_DOF_PER_SECOND` takes the slowest, rounded down, 1.5e7, so a time
 estimate errs long, by up to about 2.7 times when the machine runs fast. It was 5e7
 before, from 18.6 ns per step·DOF measured before the fitted friction step and on a
-faster day, and every time estimate read 2 to 3 times short.
+faster day, and time estimates read up to about 3 times short (1.25 to 3.1 times over the
+kinds measured).
 
 The budgets are work, not time, and kept their values when the rate was corrected:
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
@@ -124,6 +125,10 @@ class Cost:
         """Rough compute time [s] on one core (:data:`STEP_DOF_PER_SECOND`)."""
         return self.work / STEP_DOF_PER_SECOND
 
+    def duration(self) -> str:
+        """:meth:`seconds` as short text: "4 min"."""
+        return work_duration(self.work)
+
     def text(self) -> str:
         """"about 3.1e8 step·DOF and 120 MB"."""
         return f"about {_work_text(self.work)} step·DOF and {bytes_text(self.bytes)}"
@@ -141,6 +146,12 @@ def bytes_text(n: float) -> str:
             v = n / size
             return f"{v:.0f} {unit}" if v >= 10 else f"{v:.1f} {unit}"
     return f"{n:.0f} B"
+
+
+def work_duration(work: float) -> str:
+    """The time ``work`` [step·DOF] takes one core at :data:`STEP_DOF_PER_SECOND`, as short
+    text: "4 min"."""
+    return duration_text(work / STEP_DOF_PER_SECOND)
 
 
 def duration_text(seconds: float) -> str:
@@ -246,7 +257,9 @@ def ramp_cost(system, duration: float, n_speeds: int = 1, what: str | None = Non
 #: generator alone, 2.6 s at 1e-5 s, 8 DOF, 1500 rpm, against a sweep point and a diagnosis
 #: run at 48/16 in the same process): 0.93 to 1.40 times a damper DOF-step in four runs,
 #: rounded up to 1.5 so the estimate errs long. (It was 3.5, measured against the damper's
-#: kernel before the fitted friction step made the damper's step about 45 % dearer.)
+#: kernel-only 5.3e7 to 5.9e7 step·DOF per second, before the fitted friction step made the
+#: damper's step about 45 % dearer and on a faster day; the rest of the fall was not
+#: separated.)
 GENERATOR_DOF_WEIGHT = 1.5
 
 
@@ -421,7 +434,7 @@ def budgets() -> Budgets:
     ones take the defaults. An autostart budget above the limit is lowered to the limit.
     Raises InputError naming the variable, its value and what is accepted."""
     def example(work):
-        return f"{work:.1e} (about {duration_text(work / STEP_DOF_PER_SECOND)} of one core)"
+        return f"{work:.1e} (about {work_duration(work)} of one core)"
 
     limit = _env_number(BUDGET_ENV, DEFAULT_LIMIT, "step·DOF", example(DEFAULT_LIMIT))
     auto = _env_number(AUTOSTART_ENV, DEFAULT_AUTOSTART, "step·DOF", example(DEFAULT_AUTOSTART))
@@ -438,15 +451,15 @@ class BudgetError(InputError):
         self.foreground = bool(foreground)
         over = []
         if cost.work > budget.limit:
-            over.append(f"{_work_text(budget.limit)} step·DOF (about {duration_text(budget.limit / STEP_DOF_PER_SECOND)} "
-                        f"of one core, {BUDGET_ENV})")
+            over.append(f"{_work_text(budget.limit)} step·DOF (about {work_duration(budget.limit)} of one core, "
+                        f"{BUDGET_ENV})")
         elif foreground and cost.work > FOREGROUND_WORK:
-            over.append(f"{_work_text(FOREGROUND_WORK)} step·DOF (about {duration_text(FOREGROUND_WORK / STEP_DOF_PER_SECOND)} "
+            over.append(f"{_work_text(FOREGROUND_WORK)} step·DOF (about {work_duration(FOREGROUND_WORK)} "
                         "of one core) in a page that computes while you wait; run it with `dampersim simulate` "
                         "on the command line")
         if cost.bytes > budget.bytes_limit:
             over.append(f"{bytes_text(budget.bytes_limit)} of memory ({BYTES_ENV})")
-        super().__init__(f"{cost.what} is {cost.text()} (about {duration_text(cost.seconds())} of one core); "
+        super().__init__(f"{cost.what} is {cost.text()} (about {cost.duration()} of one core); "
                          f"this server accepts at most {' and '.join(over)}")
 
     def __reduce__(self):
@@ -535,6 +548,7 @@ __all__ = [
     "Cost",
     "bytes_text",
     "duration_text",
+    "work_duration",
     "degrees_of_freedom",
     "segment_nodes",
     "run_bytes",

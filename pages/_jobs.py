@@ -374,10 +374,10 @@ def status_line(view, data):
 def cost_notice(cost, decision: str, button: str) -> dict:
     """The notice of a request that waits for its Run button: the estimate, and why it
     did not start by itself."""
-    text = f"Not computed yet: {cost.what}, {cost.text()} (about {costs.duration_text(cost.seconds())} of one core)."
+    text = f"Not computed yet: {cost.what}, {cost.text()} (about {cost.duration()} of one core)."
     if decision == "ask":
         b = costs.budgets()
-        text += (f" That is above the {costs.duration_text(b.autostart / costs.STEP_DOF_PER_SECOND)} of computing that "
+        text += (f" That is above the {costs.work_duration(b.autostart)} of computing that "
                  f"start by themselves on this server ({costs.AUTOSTART_ENV}).")
     text += f" Press {button} to start it."
     return notice(text, "info")

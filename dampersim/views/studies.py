@@ -61,7 +61,7 @@ def study_request_cost(name, quick) -> costs.Cost:
 def estimate_text(cost: costs.Cost) -> str:
     """The estimate shown next to the Run button: "about 6.3e9 step·DOF, ~7 min of one core"."""
     work = f"{cost.work:.1e}".replace("e+0", "e").replace("e+", "e")
-    return f"about {work} step·DOF, ~{costs.duration_text(cost.seconds())} of one core"
+    return f"about {work} step·DOF, ~{cost.duration()} of one core"
 
 
 def admit_study(name, quick) -> costs.Cost:
