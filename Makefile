@@ -8,13 +8,15 @@ VENV_PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 TEST_CACHE := $(CURDIR)/.test-cache
 PYTEST_ARGS ?=
-# The strict identification tests run first and alone, so that their diagnoses have both cores
-# (two model processes each); STRICT_TESTS= leaves them to the lanes below. PYTEST_ARGS goes to
-# both runs: give it options, not paths (scripts/run-tests.sh says how the two exit statuses
-# combine).
-STRICT_TESTS ?= tests/discrepancy/test_identification.py
-# Then two processes: modules that only compute run beside the rest of the suite
-# (tests/conftest.py, APART); PYTEST_XDIST= runs the rest in one process.
+# Test files to run first, alone on the machine, before the two lanes below; empty by default,
+# so the strict identification tests run in their lane on one core beside the rest, which keeps
+# the whole suite shortest. STRICT_TESTS=tests/discrepancy/test_identification.py gives their
+# diagnoses both cores (shorter for them, about a third longer in all: docs/discrepancy.md, Known
+# limits). PYTEST_ARGS goes to both runs: give it options, not paths (scripts/run-tests.sh says
+# how the two exit statuses combine).
+STRICT_TESTS ?=
+# Two processes: modules that only compute run beside the rest of the suite
+# (tests/conftest.py, APART); PYTEST_XDIST= runs everything in one process.
 PYTEST_XDIST ?= -n 2
 
 # numba's cache=True writes here, so it works in a fresh clone / read-only tree.

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The test run of `make test`: the strict identification tests first, alone on the machine so
-# that their diagnoses have both cores, then the rest of the suite in the two lanes of
-# tests/conftest.py (APART).
+# The test run of `make test`: the files of STRICT_TESTS, when given, first and alone on the
+# machine (for the strict identification tests: so that their diagnoses have both cores), then
+# the rest of the suite in the two lanes of tests/conftest.py (APART).
 #
 #   PY=python STRICT_TESTS="tests/a.py" PYTEST_XDIST="-n 2" bash scripts/run-tests.sh [pytest options]
 #

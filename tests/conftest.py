@@ -40,20 +40,18 @@ def cache_dir(tmp_path, monkeypatch):
 
 #: test modules that `make test` runs in a process of their own (``-n 2``, pytest-xdist)
 #: beside the rest of the suite, which keeps its collection order in the other process: the
-#: strict identification diagnoses (when STRICT_TESTS= keeps them in the lanes; by default the
-#: Makefile runs them first, alone) and, to even the two lanes, modules that only compute (no
+#: strict identification diagnoses (unless the Makefile's STRICT_TESTS runs them first, alone)
+#: and, to even the two lanes, modules that only compute (no
 #: server, browser, port or process watch of their own). Per-module times of the fresh-clone
 #: `make test` on 2 cores before the strict tests' model step was coarsened
 #: (`PYTEST_ARGS="--durations=0" make test`, commit d45d543): identification 713 s, studies 140 s,
 #: failed runs 34 s, equal calibration 27 s, calibration steps 22 s, input channel 21 s,
 #: convergence 16 s, production against reference 15 s, accuracy point 15 s, uncalibrated
 #: directions 14 s, model terms 12 s; the other lane then 825 s in all. docs/discrepancy.md
-#: (Known limits) gives the lanes' times since. When the strict module left the lanes, twelve
-#: modules of the other lane that only compute joined this one (from the workflow on, below):
-#: 88 s of the other lane's 412 s in the fresh-clone run of commit 7acf4a2 (workflow 13.6 s,
-#: rig files 11.5, sweeps 9.7, limits 9.3, views 8.7, CLI outputs 7.3, friction energy 6.4,
-#: texts 5.9, speed stiffening and short springs 4.4 each, energy 3.3, pulsation 3.2), so
-#: that both lanes take about 300 s there.
+#: (Known limits) gives the lanes' times since. From commit 4cda586 to 2d92a35 the Makefile ran
+#: the strict module first, alone, and twelve more modules joined this lane (workflow, rig
+#: files, sweeps, limits, views, CLI outputs, friction energy, texts, speed stiffening, short
+#: springs, energy, pulsation); they went back to the other lane when the strict module did.
 APART = (
     "tests/discrepancy/test_identification.py",
     "tests/studies/test_studies.py",
@@ -66,18 +64,6 @@ APART = (
     "tests/physics/test_accuracy_point.py",
     "tests/discrepancy/test_uncalibrated.py",
     "tests/discrepancy/test_model_terms.py",
-    "tests/discrepancy/test_workflow.py",
-    "tests/rigdata/test_import.py",
-    "tests/unit/test_sweeps.py",
-    "tests/physics/test_limits.py",
-    "tests/dashboard/test_views.py",
-    "tests/unit/test_cli_outputs.py",
-    "tests/physics/test_friction_energy.py",
-    "tests/discrepancy/test_texts.py",
-    "tests/physics/test_speed_stiffening.py",
-    "tests/physics/test_short_springs.py",
-    "tests/physics/test_energy.py",
-    "tests/studies/test_pulsation.py",
 )
 
 

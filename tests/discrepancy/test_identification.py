@@ -5,10 +5,12 @@ rig does (estimated parameters perturbed by up to 3 %, finer springs and step, s
 channel gain errors and, for the absorber case, a random DAQ chain with skew, hum, offsets,
 drift and anti-alias filtering). Nine mapping points of 0.8 s for the absorber, the first eight
 for the control, three candidates, torsional points only, the model at three times the library's
-step (TIME_STEP). `make test` runs this module first, alone on the machine (WORKERS); its
-times are in docs/discrepancy.md (Known limits, "The strict tests' model step" and "The strict
-tests run first and alone"); at the library's step, on one core beside the rest of the
-suite, it took 685 to 713 s (856 s with nine points for both). These tests are strict: a
+step (TIME_STEP). `make test` runs this module in a lane of its own, on one core beside the
+rest of the suite (WORKERS); `make test STRICT_TESTS=tests/discrepancy/test_identification.py`
+runs it first, alone, with both cores. Its times are in docs/discrepancy.md (Known limits,
+"The strict tests' model step" and "The strict tests run first and alone"); at the library's
+step, on one core beside the rest of the suite, it took 685 to 713 s (856 s with nine points
+for both). These tests are strict: a
 change that stops the method naming the absorber as the most probable model with its
 magnitude, or that makes it name an effect in a clean campaign, fails here. The full
 benchmark lives in bench/bench_discrepancy.py.
@@ -45,10 +47,10 @@ CANDIDATES = ["pendulum_absorber", "turbine_drag", "transducer_bandwidth"]
 TRUE_INERTIA = 0.002  # [kg m^2] the library's strong absorber
 
 
-#: `make test` runs this module first and alone (Makefile, STRICT_TESTS): the diagnoses take both
-#: cores. Under pytest-xdist (`make test STRICT_TESTS=`) it runs in a process of its own beside
-#: the rest of the suite (tests/conftest.py, APART) and takes one core, leaving the other to the
-#: rest. Every model run is deterministic: the count changes no number.
+#: Under pytest-xdist (`make test`) this module runs in a process of its own beside the rest of
+#: the suite (tests/conftest.py, APART) and takes one core, leaving the other to the rest; run
+#: first and alone (Makefile, STRICT_TESTS) its diagnoses take both cores. Every model run is
+#: deterministic: the count changes no number.
 WORKERS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else 2
 
 #: lower bounds of the clean campaign's held-out and training reduced chi^2, each about half the
