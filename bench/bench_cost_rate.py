@@ -44,9 +44,8 @@ from dampersim.parameters import at_thesis_segments, default_parameters
 from dampersim.simulation import simulate_pulsation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_core import EXCITATION, SPEED  # noqa: E402 - bench_core.py's test point and its speed
+from bench_core import EXCITATION, SPEED  # noqa: E402 - bench_core.py's test point (orders 2 and 4, 1500 rpm)
 
-POINT = EXCITATION  # bench_core.py's test point: orders 2 and 4 at 1500 rpm
 DURATION = 2.6  # [s] a test point's simulated time ([thesis] §6.2.1)
 
 
@@ -60,10 +59,10 @@ def _kinds(tmp: Path):
     point = next(p for p in read_campaign(d).points if p.kind == "torsional")
     sysd = drive.diagnosis_system(base)
     return [
-        ("explorer point 48/16", costs.point_cost(base, DURATION), lambda: ds.simulate(base, POINT)),
-        ("explorer point 18/8", costs.point_cost(thesis, DURATION), lambda: ds.simulate(thesis, POINT)),
+        ("explorer point 48/16", costs.point_cost(base, DURATION), lambda: ds.simulate(base, EXCITATION)),
+        ("explorer point 18/8", costs.point_cost(thesis, DURATION), lambda: ds.simulate(thesis, EXCITATION)),
         ("sweep point 48/16", costs.point_cost(base, DURATION, record_segments=False),
-         lambda: ds.simulate(base, POINT, record_segments=False)),
+         lambda: ds.simulate(base, EXCITATION, record_segments=False)),
         ("ramp full-450 48/16", costs.ramp_cost(base, ramp.duration), lambda: ds.simulate(base, ramp,
                                                                                        record_segments=False)),
         ("pulsation alone", costs.pulsation_cost(), lambda: simulate_pulsation(SPEED)),
