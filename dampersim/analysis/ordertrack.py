@@ -44,9 +44,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal as sps
-from scipy.fft import next_fast_len
-from scipy.interpolate import CubicSpline
 
 from dampersim.errors import InputError
 from dampersim.signal import DEFAULT_ORDERS
@@ -161,7 +158,9 @@ def _lowpass_sos(cutoff_hz: float, fs: float) -> np.ndarray:
     ``cutoff_hz`` [Hz] for sampling at ``fs`` [Hz], read-only (callers filter with a copy). Kept
     per (cut-off, rate): a diagnosis tracks every model run of a point on the same record, and
     the design (about 1.2 ms) cost more than the filtering (about 0.4 ms)."""
-    sos = sps.butter(LOWPASS_ORDER, cutoff_hz, fs=fs, output="sos")
+    from scipy.signal import butter  # scipy here, not at the top: it takes seconds to import
+
+    sos = butter(LOWPASS_ORDER, cutoff_hz, fs=fs, output="sos")
     sos.setflags(write=False)
     return sos
 
@@ -178,7 +177,9 @@ def low_passed_speed(time, speed, cutoff_hz: float, channel: str = "speed") -> n
                          f"above 0 and below the Nyquist frequency {0.5 * fs:.6g} Hz")
     grid = np.linspace(t[0], t[-1], t.size)
     sos = _lowpass_sos(float(cutoff_hz), float(fs)).copy()  # scipy's filter takes a writable buffer
-    smooth = sps.sosfiltfilt(sos, np.interp(grid, t, w), padlen=min(t.size - 1, 3 * (2 * len(sos) + 1)))
+    from scipy.signal import sosfiltfilt
+
+    smooth = sosfiltfilt(sos, np.interp(grid, t, w), padlen=min(t.size - 1, 3 * (2 * len(sos) + 1)))
     return np.interp(t, grid, smooth)
 
 
@@ -288,6 +289,9 @@ def track_orders(x, time, angle, orders=DEFAULT_ORDERS, revolutions: int | None 
         raise InputError(f"order {k_max:g} reaches {k_max * w_max / (2 * math.pi):.1f} Hz at the record's highest "
                          f"speed ({_rpm(w_max)}), at or above the Nyquist frequency {0.5 * fs:.1f} Hz; drop that "
                          "order or sample faster")
+    from scipy.fft import next_fast_len  # scipy here, not at the top: it takes seconds to import
+    from scipy.interpolate import CubicSpline
+
     # samples per revolution: at least as dense as the time samples at the lowest speed
     per_rev = next_fast_len(max(int(math.ceil(2.0 * math.pi / float(np.min(d)))), int(4 * k_max)))
     if start is None:
