@@ -157,7 +157,8 @@ def _lowpass_sos(cutoff_hz: float, fs: float) -> np.ndarray:
     """Second-order sections of the LOWPASS_ORDER Butterworth low-pass with its cut-off at
     ``cutoff_hz`` [Hz] for sampling at ``fs`` [Hz], read-only (callers filter with a copy). Kept
     per (cut-off, rate): a diagnosis tracks every model run of a point on the same record, and
-    the design (about 1.2 ms) cost more than the filtering (about 0.4 ms)."""
+    the design (about 1.2 ms) cost more than filtering a test point's record (0.4 to 4 ms for 5k
+    to 50k samples). Up to 512 designs are kept, under 0.2 MB."""
     from scipy.signal import butter  # scipy here, not at the top: it takes seconds to import
 
     sos = butter(LOWPASS_ORDER, cutoff_hz, fs=fs, output="sos")

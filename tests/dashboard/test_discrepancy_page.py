@@ -77,8 +77,8 @@ def tiny(tmp_path_factory):
         mp.setenv("DAMPERSIM_CACHE_DIR", str(root / "cache"))
         mp.setattr(views.discrepancy, "DISCREPANCY_OPTIONS", TINY_OPTIONS)
         # these tests check the page, not the diagnosis's figures: the page's default set is
-        # TINY_BASE here (its cache key, cost and diagnosis alike), and the truth comes from
-        # the thesis's segments (at 24/10 segments, its own step)
+        # TINY_BASE here (its cache key, cost and diagnosis alike); the truth is synthesised
+        # from the 18/8 base, refined to 24/10 segments and 5e-6 s (synth.truth_system)
         mp.setattr(views.discrepancy, "default_parameters", lambda *a, **k: TINY_BASE)
         mp.setattr(dg_module, "default_parameters", lambda *a, **k: TINY_BASE)
         folder = root / "tiny-campaign"
