@@ -92,7 +92,7 @@ def spread_gain(r_s, btb, sds) -> float:
 
 def _log_mean_exp(terms) -> float:
     """log of the mean of exp(terms) (the spreads' grid, weighted evenly)."""
-    from scipy.special import logsumexp  # scipy here, not at the top: the dashboard starts faster
+    from scipy.special import logsumexp  # scipy loads only when a diagnosis runs
 
     return float(logsumexp(terms) - math.log(len(terms)))
 
@@ -173,7 +173,7 @@ def ramp_basis(lik_r) -> np.ndarray:
     coefficient]: P_j(v) and s P_j(v) per ramp (:func:`ramp_direction`), block-diagonal over
     the ramps. P_0 repeats the ramp's angle offset, whose prior (0.2 deg) the misfit widens:
     a windup zero that far off is part of what "none" may not express."""
-    from scipy.linalg import block_diag  # scipy here, not at the top: the dashboard starts faster
+    from scipy.linalg import block_diag  # scipy loads only when a diagnosis runs
 
     blocks = []
     for torque in lik_r.torque_samples():

@@ -2,8 +2,8 @@
 stops by itself).
 
 Four distinct sweeps, each asked for by four sessions. The server runs with a global
-limit of 2 jobs. What must hold while the sweeps run: never more job processes than the
-limit; the server's process tree and memory stay bounded; a light page request is
+limit of 2 jobs. What must hold while the sweeps run: the job limit is reached and never
+exceeded; the server's process tree and memory stay bounded; a light page request is
 answered within 1 s at p95; identical sweeps are computed once (one job per distinct
 link); every session gets its result; stopping the server leaves no process behind.
 """

@@ -10,13 +10,14 @@ the calls and their work, ``len(torque)`` steps x the layout's DOF, as the kerne
 (not through the cost model's formulas). The studies run with ``executor="serial"`` so every
 call happens in this process, on a fresh cache so nothing is served from an earlier run.
 
-The studies of the plan and findings tests run on SYSTEM, the default damper at the thesis's
+Every study run here but the CLI test's runs on SYSTEM, the default damper at the thesis's
 18/8 segments (the CLI test runs the default 48/16): these tests check the studies'
 machinery and the findings a reduced grid shows, which hold on both sets (measured one after
 the other on one machine). The four costliest studies' estimated time falls from 154.5 s of
-one core to 71.9 s (study_cost, steps x DOF); in the suite's fresh-clone runs they took 127.0 s
-(commit 78f03b9) and then 73.8 s (cc49dbe), both in the machine's slow state. The default set's findings and figures are
-those of bench/bench_studies.py and docs/thesis-comparison.md.
+one core to 71.9 s (study_cost, steps x DOF); in the suite's fresh-clone runs they took
+127.0 s (commit 78f03b9) and then 73.8 s (cc49dbe), both in the machine's slow state. The
+default set's findings and figures are those of bench/bench_studies.py and
+docs/thesis-comparison.md.
 """
 
 import json
@@ -40,7 +41,7 @@ def results():
     return {}
 
 
-#: the set the plan and findings tests run the studies on (module docstring)
+#: the set every study run here but the CLI test's runs on (module docstring)
 SYSTEM = at_thesis_segments()
 
 
