@@ -27,12 +27,16 @@ from dash import no_update
 
 import app  # noqa: F401  (registers the pages)
 from dampersim import views
-from dampersim.parameters import at_thesis_segments, with_updates
+from dampersim.parameters import at_thesis_segments
 from dampersim.discrepancy import diagnose as dg_module
 from dampersim.discrepancy import report
 from pages import discrepancy as D
 from tests.dashboard.test_http import DashClient
 from tests.dashboard.test_callbacks import find
+# the diagnosed model: the strict identification tests' (the thesis's 18/8 segments, which
+# halve the run time against the default 48/16, at three times the library's step, a third of
+# the steps; it warns, AccuracyWarning, which these tests ignore)
+from tests.discrepancy.test_identification import BASE as TINY_BASE
 
 pytestmark = pytest.mark.filterwarnings("ignore::dampersim.errors.AccuracyWarning")
 
@@ -40,10 +44,6 @@ EXAMPLE = "hidden-effect-example"
 TINY_POINTS = ["map_900_150", "map_1500_150", "map_2000_50"]  # the fewest points diagnose() accepts (3)
 TINY_OPTIONS = {"candidates": ["pendulum_absorber", "turbine_drag"], "calibration_iterations": 1, "shortlist": 1,
                 "recommend": False}  # the next-test design (75 runs) is tested in tests/discrepancy
-#: the diagnosed model: the thesis's 18/8 segments, which halve the run time against the
-#: default 48/16, at three times the library's step, as the strict identification tests run it
-#: (a third of the steps; it warns, AccuracyWarning, which these tests ignore)
-TINY_BASE = with_updates(at_thesis_segments(), {"solver.time_step": 1 / 40000})
 
 
 def as_json(component) -> str:
