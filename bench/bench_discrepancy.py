@@ -35,6 +35,7 @@ table at the end, or alone with ``--summary``.
     python bench/bench_discrepancy.py --only ool/rig_inertia/1 --out b.jsonl --misfit-inputs kept
     python bench/bench_discrepancy.py --summary bench.jsonl                 # figures of a file
     python bench/bench_discrepancy.py --summary a.jsonl b.jsonl             # ... of several together
+    python bench/bench_discrepancy.py --rows a.jsonl b.jsonl                # a Markdown row per case
     python bench/bench_discrepancy.py --matrix classic --only miscalibration --out classic.jsonl
 """
 
@@ -52,7 +53,7 @@ import zlib
 import numpy as np
 
 from dampersim.discrepancy import truths
-from dampersim.discrepancy.benchmark import summary, summary_table
+from dampersim.discrepancy.benchmark import case_table, summary, summary_table
 from dampersim.discrepancy.campaign import read_campaign
 from dampersim.discrepancy.diagnose import diagnose
 from dampersim.discrepancy.effects import EFFECTS, NAMES
@@ -269,6 +270,9 @@ def main(argv=None):
     ap.add_argument("--summary", metavar="FILE", nargs="+",
                     help="print the figures of one or more results files, run nothing (read in the order given: "
                     "a case in several files counts once, by its last successful line)")
+    ap.add_argument("--rows", metavar="FILE", nargs="+",
+                    help="print one Markdown table row per case of one or more results files (as --summary "
+                    "reads them), run nothing")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per effect (hard: 2, classic: 3)")
     ap.add_argument("--matrix-seed", type=int, default=0, help="hard: seed of the random truths and DAQ settings")
     ap.add_argument("--reduced", action="store_true", help="classic: one magnitude and one seed, fewer controls")
@@ -285,6 +289,9 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.summary:
         print(summary_table(summary(read_files(ap, a.summary))))
+        return 0
+    if a.rows:
+        print(case_table(read_files(ap, a.rows)))
         return 0
     if a.matrix == "hard":
         cases = hard_cases(a.seeds or 2, a.matrix_seed)

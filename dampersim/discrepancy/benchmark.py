@@ -9,7 +9,8 @@ keys (``verdict``, ``effect``, ``effects``, ``posterior``, ``detectability``,
 whose run failed. Keys a diagnosis does not have are read as absent, so that rows written
 before the diagnosis reported a posterior still count where they can.
 
-:func:`summary` gives the figures; :func:`summary_table` prints them.
+:func:`summary` gives the figures; :func:`summary_table` prints them; :func:`case_table`
+prints one Markdown row per case, as the tables of docs/discrepancy.md give them.
 """
 
 from __future__ import annotations
@@ -196,6 +197,78 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
     return out
 
 
+def posterior_without_misfit(row):
+    """{model: probability} without the unnamed smooth misfit beside "none"
+    (:mod:`dampersim.discrepancy.unnamed`): the row's log evidences (``likelihood.log_evidence``,
+    which carry the misfit's gain on "none") with that gain
+    (``likelihood.unnamed_misfit.log_evidence`` [nats]) taken off "none", under the row's
+    priors (``likelihood.model_prior``). None when the row lacks any of them."""
+    like = row.get("likelihood") or {}
+    le, prior = like.get("log_evidence"), like.get("model_prior")
+    gain = (like.get("unnamed_misfit") or {}).get("log_evidence")
+    if not le or not prior or not _finite(gain) or "none" not in le:
+        return None
+    le = {k: float(v) for k, v in le.items() if _finite(v) and float(prior.get(k) or 0.0) > 0.0}
+    le["none"] -= float(gain)
+    top = max(le[k] + math.log(float(prior[k])) for k in le)
+    w = {k: math.exp(le[k] + math.log(float(prior[k])) - top) for k in le}
+    total = sum(w.values())
+    return {k: v / total for k, v in w.items()}
+
+
+def _leaders(post, n: int = 2) -> str:
+    if not post:
+        return "—"
+    ranked = sorted(((float(v), k) for k, v in post.items() if _finite(v)), reverse=True)[:n]
+    return "; ".join(f"{k} {v:.3f}" for v, k in ranked)
+
+
+def _num(x, fmt: str) -> str:
+    return format(float(x), fmt) if _finite(x) else "—"
+
+
+#: columns of :func:`case_row`
+CASE_TABLE_HEADER = ("| Case | Truth | Verdict | Posterior (two most probable) | Without the misfit | "
+                     "Held out: calibrated → verdict's model | Training | η | Fitted [90 % interval] | "
+                     "Detectability of the truth (side) | Runs | Wall [s] |\n" + "|---" * 12 + "|")
+
+
+def case_row(row) -> str:
+    """One Markdown row of a finished case under CASE_TABLE_HEADER: the truth's description,
+    the verdict, the two most probable models with and without the unnamed misfit
+    (:func:`posterior_without_misfit`), the held-out reduced chi^2 of the calibrated model
+    and of the verdict's model, the training one, the learning rate η, the fitted effects'
+    magnitudes with their 90 % intervals (in each effect's unit), for a single hidden effect
+    the diagnosis's detectability threshold of it and the side its true magnitude lies on
+    (:func:`side`), the model runs and the case's wall time [s]."""
+    like = row.get("likelihood") or {}
+    fitted = []
+    for e in row.get("effects") or ():
+        mag = EFFECTS[e["name"]].magnitude if e.get("name") in EFFECTS else None
+        value = (e.get("parameters") or {}).get(mag)
+        iv = interval(row, e.get("name"), mag) if mag else None
+        span = f" [{iv[0]:.4g}, {iv[1]:.4g}]" if iv else ""
+        fitted.append(f"{e.get('name')} {mag} {_num(value, '.4g')}{span}")
+    detect = "—"
+    if row.get("kind") == "effect" and len(true_effects(row)) == 1:
+        c = effect_case(row)
+        detect = f"{_num(c['threshold'], '.4g')} ({c['side']})"
+    cells = [row.get("id"), (row.get("truth") or {}).get("description", ""), f"`{row.get('verdict')}`",
+             _leaders(row.get("posterior")), _leaders(posterior_without_misfit(row)),
+             f"{_num(like.get('reduced_chi2_held_out_calibrated'), '.2f')} → "
+             f"{_num(like.get('reduced_chi2_held_out'), '.2f')}",
+             _num(like.get("reduced_chi2_train"), ".2f"), _num(like.get("learning_rate"), ".2f"),
+             "; ".join(fitted) or "—", detect, str(row.get("simulations", "—")),
+             _num(row.get("wall_time_s"), ".0f")]
+    return "| " + " | ".join(str(c) for c in cells) + " |"
+
+
+def case_table(rows) -> str:
+    """CASE_TABLE_HEADER and one :func:`case_row` per case (its last successful row, in
+    order of first appearance)."""
+    return "\n".join([CASE_TABLE_HEADER] + [case_row(r) for r in latest(rows)[0]])
+
+
 def _fmt(fig: dict) -> str:
     if "share" in fig:
         s = "-" if fig["share"] is None else f"{100 * fig['share']:.0f} %"
@@ -236,4 +309,5 @@ def summary_table(s: dict) -> str:
 
 
 __all__ = ["KINDS", "CLAIM_PROBABILITY", "CONTROL_CHI2_RANGE", "latest", "true_effects", "named", "probability", "top_model", "claimed", "interval",
-           "side", "effect_case", "summary", "summary_table"]
+           "side", "effect_case", "summary", "summary_table", "posterior_without_misfit", "CASE_TABLE_HEADER",
+           "case_row", "case_table"]

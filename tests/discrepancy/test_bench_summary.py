@@ -263,3 +263,51 @@ def test_the_controls_chi2_range_includes_both_ends():
     # NaN and None are no figure: five values, 0.5 and 1.5 inside
     assert c["reduced_chi2_held_out_within"] == {"count": 3, "of": 5, "share": 0.6}
     assert c["reduced_chi2_held_out_below"]["count"] == 1 and c["reduced_chi2_held_out_above"]["count"] == 1
+
+
+def test_the_posterior_without_the_misfit_takes_its_gain_off_none():
+    # log evidences that already carry a 2-nat misfit gain on "none", equal priors on the
+    # two effects: with the gain e^0 : e^-1 : e^-1 ... without it e^-2 : e^-1 : e^-1
+    like = {"log_evidence": {"none": 0.0, "turbine_drag": -1.0, "output_backlash": -1.0},
+            "model_prior": {"none": 0.5, "turbine_drag": 0.25, "output_backlash": 0.25},
+            "unnamed_misfit": {"log_evidence": 2.0}}
+    post = B.posterior_without_misfit({"likelihood": like})
+    w_none, w_eff = 0.5 * np.exp(-2.0), 0.25 * np.exp(-1.0)
+    assert post["none"] == pytest.approx(w_none / (w_none + 2 * w_eff), rel=1e-12)
+    assert post["turbine_drag"] == pytest.approx(post["output_backlash"], rel=1e-12)
+    assert sum(post.values()) == pytest.approx(1.0, rel=1e-12)
+    # a zero gain gives the posterior the evidences and priors give with the misfit
+    same = B.posterior_without_misfit({"likelihood": dict(like, unnamed_misfit={"log_evidence": 0.0})})
+    assert same["none"] == pytest.approx(0.5 / (0.5 + 2 * 0.25 * np.exp(-1.0)), rel=1e-12)
+    # rows from before the misfit, or without evidences, have no such posterior
+    assert B.posterior_without_misfit({"likelihood": dict(like, unnamed_misfit=None)}) is None
+    assert B.posterior_without_misfit({}) is None
+
+
+def test_a_case_row_gives_the_verdict_posteriors_fit_and_side(bench, tmp_path, capsys):
+    row = dict(ROWS[0], truth=dict(ROWS[0]["truth"], description="pendulum absorber (typical)"), simulations=1500,
+               posterior={"none": 0.08, "pendulum_absorber": 0.9, "turbine_drag": 0.02},
+               wall_time_s=1234.4, likelihood={
+                   "reduced_chi2_held_out": 0.9, "reduced_chi2_held_out_calibrated": 4.25,
+                   "reduced_chi2_train": 1.1, "learning_rate": 1.0,
+                   "log_evidence": {"none": 0.0, "pendulum_absorber": 3.0, "turbine_drag": -1.0},
+                   "model_prior": {"none": 0.5, "pendulum_absorber": 0.25, "turbine_drag": 0.25},
+                   "unnamed_misfit": {"log_evidence": 1.0}})
+    cells = [c.strip() for c in B.case_row(lines([row])[0]).strip("|").split("|")]
+    header = [c.strip() for c in B.CASE_TABLE_HEADER.splitlines()[0].strip("|").split("|")]
+    assert len(cells) == len(header) == 12
+    assert cells[:3] == ["e1", "pendulum absorber (typical)", "`missing_effect`"]
+    assert cells[3] == "pendulum_absorber 0.900; none 0.080"
+    # "none" loses its 1-nat gain: 0.5 e^-1 : 0.25 e^3 : 0.25 e^-1
+    assert cells[4] == "pendulum_absorber 0.948; none 0.035"
+    assert cells[5:8] == ["4.25 → 0.90", "1.10", "1.00"]
+    assert cells[8] == "pendulum_absorber inertia 0.0019 [0.0017, 0.0021]"
+    assert cells[9] == "0.0008 (beyond)" and cells[10:] == ["1500", "1234"]
+    # a control: no fitted effect, no detectability side; figures it lacks read "—"
+    ctl = [c.strip() for c in B.case_row(ROWS[7]).strip("|").split("|")]  # c1
+    assert ctl[0] == "c1" and ctl[4:10] == ["—", "— → 1.10", "0.90", "—", "—", "—"]
+    path = tmp_path / "rows.jsonl"
+    path.write_text(json.dumps(row) + "\n" + json.dumps(ROWS[-1]) + "\n")  # the failed case gives no row
+    assert bench.main(["--rows", str(path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == B.CASE_TABLE_HEADER.splitlines()[0] and len(out) == 3 and out[2].startswith("| e1 |")
