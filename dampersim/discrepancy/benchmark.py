@@ -10,7 +10,7 @@ whose run failed. Keys a diagnosis does not have are read as absent, so that row
 before the diagnosis reported a posterior still count where they can.
 
 :func:`summary` gives the figures; :func:`summary_table` prints them; :func:`case_table`
-prints one Markdown row per case, as the tables of docs/discrepancy.md give them.
+prints one Markdown row per case, in the manner of the case tables of docs/discrepancy.md.
 """
 
 from __future__ import annotations
@@ -197,70 +197,102 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
     return out
 
 
+def _number(x):
+    """x as a finite float, else None (also for strings, lists and other non-numbers)."""
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return None
+    return float(x) if math.isfinite(float(x)) else None
+
+
 def posterior_without_misfit(row):
     """{model: probability} without the unnamed smooth misfit beside "none"
-    (:mod:`dampersim.discrepancy.unnamed`): the row's log evidences (``likelihood.log_evidence``,
-    which carry the misfit's gain on "none") with that gain
+    (:mod:`dampersim.discrepancy.unnamed`): the row's log evidences (``likelihood.log_evidence``
+    [nats], which carry the misfit's gain on "none" alone) with that gain
     (``likelihood.unnamed_misfit.log_evidence`` [nats]) taken off "none", under the row's
-    priors (``likelihood.model_prior``). None when the row lacks any of them."""
+    priors (``likelihood.model_prior``). A model without a finite evidence or with a zero prior
+    gets 0. None when the row lacks the evidences, the priors, a finite gain or a finite
+    evidence of "none" (rows from before the misfit, or from its first form, which kept one
+    gain per model and no top-level ``log_evidence``)."""
     like = row.get("likelihood") or {}
     le, prior = like.get("log_evidence"), like.get("model_prior")
-    gain = (like.get("unnamed_misfit") or {}).get("log_evidence")
-    if not le or not prior or not _finite(gain) or "none" not in le:
+    misfit = like.get("unnamed_misfit")
+    gain = _number(misfit.get("log_evidence")) if isinstance(misfit, dict) else None
+    if not isinstance(le, dict) or not isinstance(prior, dict) or gain is None:
         return None
-    le = {k: float(v) for k, v in le.items() if _finite(v) and float(prior.get(k) or 0.0) > 0.0}
-    le["none"] -= float(gain)
-    top = max(le[k] + math.log(float(prior[k])) for k in le)
-    w = {k: math.exp(le[k] + math.log(float(prior[k])) - top) for k in le}
+    terms = {}
+    for k, v in le.items():
+        e, p = _number(v), _number(prior.get(k))
+        if e is not None and p is not None and p > 0.0:
+            terms[k] = e - (gain if k == "none" else 0.0) + math.log(p)
+    if "none" not in terms:
+        return None
+    top = max(terms.values())
+    w = {k: math.exp(v - top) for k, v in terms.items()}
     total = sum(w.values())
-    return {k: v / total for k, v in w.items()}
+    return {k: w.get(k, 0.0) / total for k in le}
 
 
 def _leaders(post, n: int = 2) -> str:
-    if not post:
-        return "—"
-    ranked = sorted(((float(v), k) for k, v in post.items() if _finite(v)), reverse=True)[:n]
-    return "; ".join(f"{k} {v:.3f}" for v, k in ranked)
+    ranked = sorted(((_number(v), k) for k, v in (post or {}).items() if _number(v) is not None), reverse=True)
+    return "; ".join(f"{k} {v:.3f}" for v, k in ranked[:n]) or "—"
 
 
 def _num(x, fmt: str) -> str:
-    return format(float(x), fmt) if _finite(x) else "—"
+    x = _number(x)
+    return "—" if x is None else format(x, fmt)
+
+
+def _cell(text) -> str:
+    return str(text).replace("|", "\\|") if text not in (None, "") else "—"
 
 
 #: columns of :func:`case_row`
 CASE_TABLE_HEADER = ("| Case | Truth | Verdict | Posterior (two most probable) | Without the misfit | "
-                     "Held out: calibrated → verdict's model | Training | η | Fitted [90 % interval] | "
-                     "Detectability of the truth (side) | Runs | Wall [s] |\n" + "|---" * 12 + "|")
+                     "Misfit's gain on \"none\": torsional, ramps → total [nats] | "
+                     "Held out: calibrated → verdict's model | Training | η | "
+                     "Most probable model's fit [90 % interval] | Detectability of the truth (side) | Runs | "
+                     "Diagnosis wall [s] |\n" + "|---" * 13 + "|")
 
 
 def case_row(row) -> str:
-    """One Markdown row of a finished case under CASE_TABLE_HEADER: the truth's description,
-    the verdict, the two most probable models with and without the unnamed misfit
-    (:func:`posterior_without_misfit`), the held-out reduced chi^2 of the calibrated model
-    and of the verdict's model, the training one, the learning rate η, the fitted effects'
-    magnitudes with their 90 % intervals (in each effect's unit), for a single hidden effect
-    the diagnosis's detectability threshold of it and the side its true magnitude lies on
-    (:func:`side`), the model runs and the case's wall time [s]."""
+    """One Markdown row of a finished case under CASE_TABLE_HEADER, in the manner of the case
+    tables of docs/discrepancy.md: the truth's description; the verdict; the two most probable
+    models with and without the unnamed misfit (:func:`posterior_without_misfit`, effect names
+    as ``effects --json`` gives them); the misfit's gain on "none" [nats] from the torsional
+    points and the ramps and in all; the held-out reduced chi^2 of the calibrated model and of
+    the verdict's model; the training one; the learning rate η; the magnitudes of the most
+    probable model's effects (fitted whatever the verdict; adopted only with
+    ``missing_effect``) with their 90 % intervals, in each effect's unit; for a single hidden
+    effect the diagnosis's detectability threshold of it and the side its true magnitude lies
+    on (:func:`side`); the model runs; the diagnosis's own wall time (``wall_time_s`` [s],
+    without the synthesis)."""
     like = row.get("likelihood") or {}
     fitted = []
     for e in row.get("effects") or ():
-        mag = EFFECTS[e["name"]].magnitude if e.get("name") in EFFECTS else None
-        value = (e.get("parameters") or {}).get(mag)
-        iv = interval(row, e.get("name"), mag) if mag else None
+        if not isinstance(e, dict) or e.get("name") not in EFFECTS:
+            continue
+        mag = EFFECTS[e["name"]].magnitude
+        iv = interval(row, e["name"], mag)
         span = f" [{iv[0]:.4g}, {iv[1]:.4g}]" if iv else ""
-        fitted.append(f"{e.get('name')} {mag} {_num(value, '.4g')}{span}")
+        fitted.append(f"{e['name']} {mag} {_num((e.get('parameters') or {}).get(mag), '.4g')}{span}")
     detect = "—"
     if row.get("kind") == "effect" and len(true_effects(row)) == 1:
         c = effect_case(row)
         detect = f"{_num(c['threshold'], '.4g')} ({c['side']})"
-    cells = [row.get("id"), (row.get("truth") or {}).get("description", ""), f"`{row.get('verdict')}`",
-             _leaders(row.get("posterior")), _leaders(posterior_without_misfit(row)),
+    misfit = like.get("unnamed_misfit")
+    gain = "—"
+    if isinstance(misfit, dict) and _number(misfit.get("log_evidence")) is not None:
+        gain = (f"{_num(misfit.get('torsional'), '+.2f')}, {_num(misfit.get('ramps'), '+.2f')} → "
+                f"{_num(misfit.get('log_evidence'), '+.2f')}")
+    cells = [_cell(row.get("id")), _cell((row.get("truth") or {}).get("description")),
+             f"`{row['verdict']}`" if row.get("verdict") else "—",
+             _leaders(row.get("posterior")), _leaders(posterior_without_misfit(row)), gain,
              f"{_num(like.get('reduced_chi2_held_out_calibrated'), '.2f')} → "
              f"{_num(like.get('reduced_chi2_held_out'), '.2f')}",
              _num(like.get("reduced_chi2_train"), ".2f"), _num(like.get("learning_rate"), ".2f"),
-             "; ".join(fitted) or "—", detect, str(row.get("simulations", "—")),
+             "; ".join(fitted) or "—", detect, _num(row.get("simulations"), ".0f"),
              _num(row.get("wall_time_s"), ".0f")]
-    return "| " + " | ".join(str(c) for c in cells) + " |"
+    return "| " + " | ".join(cells) + " |"
 
 
 def case_table(rows) -> str:

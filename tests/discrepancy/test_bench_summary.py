@@ -268,19 +268,30 @@ def test_the_controls_chi2_range_includes_both_ends():
 def test_the_posterior_without_the_misfit_takes_its_gain_off_none():
     # log evidences that already carry a 2-nat misfit gain on "none", equal priors on the
     # two effects: with the gain e^0 : e^-1 : e^-1 ... without it e^-2 : e^-1 : e^-1
-    like = {"log_evidence": {"none": 0.0, "turbine_drag": -1.0, "output_backlash": -1.0},
-            "model_prior": {"none": 0.5, "turbine_drag": 0.25, "output_backlash": 0.25},
-            "unnamed_misfit": {"log_evidence": 2.0}}
+    like = {"log_evidence": {"none": 0.0, "turbine_drag": -1.0, "output_backlash+turbine_drag": -1.0},
+            "model_prior": {"none": 0.5, "turbine_drag": 0.25, "output_backlash+turbine_drag": 0.25},
+            "unnamed_misfit": {"torsional": 1.5, "ramps": 0.5, "log_evidence": 2.0}}
     post = B.posterior_without_misfit({"likelihood": like})
     w_none, w_eff = 0.5 * np.exp(-2.0), 0.25 * np.exp(-1.0)
     assert post["none"] == pytest.approx(w_none / (w_none + 2 * w_eff), rel=1e-12)
-    assert post["turbine_drag"] == pytest.approx(post["output_backlash"], rel=1e-12)
+    assert post["turbine_drag"] == pytest.approx(post["output_backlash+turbine_drag"], rel=1e-12)
     assert sum(post.values()) == pytest.approx(1.0, rel=1e-12)
     # a zero gain gives the posterior the evidences and priors give with the misfit
     same = B.posterior_without_misfit({"likelihood": dict(like, unnamed_misfit={"log_evidence": 0.0})})
     assert same["none"] == pytest.approx(0.5 / (0.5 + 2 * 0.25 * np.exp(-1.0)), rel=1e-12)
-    # rows from before the misfit, or without evidences, have no such posterior
-    assert B.posterior_without_misfit({"likelihood": dict(like, unnamed_misfit=None)}) is None
+    # a model without a finite evidence (written as null) or with a zero prior gets 0
+    odd = B.posterior_without_misfit({"likelihood": dict(
+        like, log_evidence=dict(like["log_evidence"], clutch_slip=None, spring_preload=5.0),
+        model_prior=dict(like["model_prior"], clutch_slip=0.1, spring_preload=0.0))})
+    assert odd["clutch_slip"] == odd["spring_preload"] == 0.0 and odd["none"] == pytest.approx(post["none"])
+    # no such posterior: rows from before the misfit (no key), from its first form (one gain per
+    # model, no top-level evidences), without a finite evidence of "none", or without priors
+    assert B.posterior_without_misfit({"likelihood": {k: v for k, v in like.items() if k != "unnamed_misfit"}}) is None
+    first_form = {"unnamed_misfit": {"none": {"torsional": 1.0, "ramps": 0.5}}}
+    assert B.posterior_without_misfit({"likelihood": first_form}) is None
+    no_none = dict(like, log_evidence=dict(like["log_evidence"], none=None))
+    assert B.posterior_without_misfit({"likelihood": no_none}) is None
+    assert B.posterior_without_misfit({"likelihood": dict(like, model_prior=None)}) is None
     assert B.posterior_without_misfit({}) is None
 
 
@@ -292,20 +303,27 @@ def test_a_case_row_gives_the_verdict_posteriors_fit_and_side(bench, tmp_path, c
                    "reduced_chi2_train": 1.1, "learning_rate": 1.0,
                    "log_evidence": {"none": 0.0, "pendulum_absorber": 3.0, "turbine_drag": -1.0},
                    "model_prior": {"none": 0.5, "pendulum_absorber": 0.25, "turbine_drag": 0.25},
-                   "unnamed_misfit": {"log_evidence": 1.0}})
+                   "unnamed_misfit": {"torsional": 0.75, "ramps": 0.5, "log_evidence": 1.0}})
     cells = [c.strip() for c in B.case_row(lines([row])[0]).strip("|").split("|")]
     header = [c.strip() for c in B.CASE_TABLE_HEADER.splitlines()[0].strip("|").split("|")]
-    assert len(cells) == len(header) == 12
+    assert len(cells) == len(header) == 13
     assert cells[:3] == ["e1", "pendulum absorber (typical)", "`missing_effect`"]
     assert cells[3] == "pendulum_absorber 0.900; none 0.080"
     # "none" loses its 1-nat gain: 0.5 e^-1 : 0.25 e^3 : 0.25 e^-1
     assert cells[4] == "pendulum_absorber 0.948; none 0.035"
-    assert cells[5:8] == ["4.25 → 0.90", "1.10", "1.00"]
-    assert cells[8] == "pendulum_absorber inertia 0.0019 [0.0017, 0.0021]"
-    assert cells[9] == "0.0008 (beyond)" and cells[10:] == ["1500", "1234"]
-    # a control: no fitted effect, no detectability side; figures it lacks read "—"
+    assert cells[5] == "+0.75, +0.50 → +1.00"
+    assert cells[6:9] == ["4.25 → 0.90", "1.10", "1.00"]
+    assert cells[9] == "pendulum_absorber inertia 0.0019 [0.0017, 0.0021]"
+    assert cells[10] == "0.0008 (beyond)" and cells[11:] == ["1500", "1234"]
+    # a control: no fitted effect, no misfit, no detectability side; figures it lacks read "—"
     ctl = [c.strip() for c in B.case_row(ROWS[7]).strip("|").split("|")]  # c1
-    assert ctl[0] == "c1" and ctl[4:10] == ["—", "— → 1.10", "0.90", "—", "—", "—"]
+    assert ctl[0] == "c1" and ctl[2] == "—"
+    assert ctl[4:] == ["—", "—", "— → 1.10", "0.90", "—", "—", "—", "—", "—"]
+    # null figures, an unknown effect and a "|" in a description do not break the row
+    odd = dict(row, simulations=None, posterior={"none": None}, effects=[{"name": "zzz"}],
+               truth=dict(row["truth"], description="a | b"))
+    cells = B.case_row(lines([odd])[0])
+    assert "a \\| b" in cells and "None" not in cells and cells.count(" | ") == 12
     path = tmp_path / "rows.jsonl"
     path.write_text(json.dumps(row) + "\n" + json.dumps(ROWS[-1]) + "\n")  # the failed case gives no row
     assert bench.main(["--rows", str(path)]) == 0
