@@ -16,6 +16,7 @@ prints one Markdown row per case, in the manner of the case tables of docs/discr
 from __future__ import annotations
 
 import math
+import numbers
 import statistics
 
 from dampersim.discrepancy.effects import EFFECTS
@@ -115,8 +116,15 @@ def _share(k: int, n: int) -> dict:
     return {"count": int(k), "of": int(n), "share": (k / n) if n else None}
 
 
+def _number(x):
+    """x as a finite float, else None (also for strings, lists and other non-numbers)."""
+    if isinstance(x, bool) or not isinstance(x, numbers.Real):
+        return None
+    return float(x) if math.isfinite(float(x)) else None
+
+
 def _finite(x) -> bool:
-    return x is not None and math.isfinite(float(x))
+    return _number(x) is not None
 
 
 def _spread(values) -> dict:
@@ -195,13 +203,6 @@ def summary(rows, p: float = CLAIM_PROBABILITY) -> dict:
         one += bool(truth & got)
     out["pair"] = {"both_named": _share(both, len(by["pair"])), "one_named": _share(one, len(by["pair"]))}
     return out
-
-
-def _number(x):
-    """x as a finite float, else None (also for strings, lists and other non-numbers)."""
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        return None
-    return float(x) if math.isfinite(float(x)) else None
 
 
 def posterior_without_misfit(row):
