@@ -19,6 +19,7 @@ import math
 import numbers
 import statistics
 
+from dampersim.discrepancy import selection
 from dampersim.discrepancy.effects import EFFECTS
 
 KINDS = ("effect", "pair", "control", "out_of_library")
@@ -220,17 +221,15 @@ def posterior_without_misfit(row):
     gain = _number(misfit.get("log_evidence")) if isinstance(misfit, dict) else None
     if not isinstance(le, dict) or not isinstance(prior, dict) or gain is None:
         return None
-    terms = {}
+    log_z, priors = {}, {}
     for k, v in le.items():
         e, p = _number(v), _number(prior.get(k))
-        if e is not None and p is not None and p > 0.0:
-            terms[k] = e - (gain if k == "none" else 0.0) + math.log(p)
-    if "none" not in terms:
+        usable = e is not None and p is not None and p > 0.0
+        log_z[k] = e - (gain if k == "none" else 0.0) if usable else -math.inf
+        priors[k] = p if usable else 1.0  # read only for models with a finite evidence
+    if not math.isfinite(log_z.get("none", -math.inf)):
         return None
-    top = max(terms.values())
-    w = {k: math.exp(v - top) for k, v in terms.items()}
-    total = sum(w.values())
-    return {k: w.get(k, 0.0) / total for k in le}
+    return selection.posterior(log_z, priors)
 
 
 def _leaders(post, n: int = 2) -> str:
