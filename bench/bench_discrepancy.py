@@ -267,10 +267,11 @@ def main(argv=None):
                     "'calibration', 'rig_shaft', ...; classic: 'no_effect', 'miscalibration'), levels or case ids")
     ap.add_argument("--limit", type=int, help="run at most this many cases")
     ap.add_argument("--list", action="store_true", help="print the cases and their truths, run nothing")
-    ap.add_argument("--summary", metavar="FILE", nargs="+",
+    read_only = ap.add_mutually_exclusive_group()
+    read_only.add_argument("--summary", metavar="FILE", nargs="+",
                     help="print the figures of one or more results files, run nothing (read in the order given: "
                     "a case in several files counts once, by its last successful line)")
-    ap.add_argument("--rows", metavar="FILE", nargs="+",
+    read_only.add_argument("--rows", metavar="FILE", nargs="+",
                     help="print one Markdown table row per case of one or more results files (as --summary "
                     "reads them), run nothing")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per effect (hard: 2, classic: 3)")

@@ -68,7 +68,7 @@ def probability(row, name: str):
     post = row.get("posterior")
     if not post:
         return None
-    return sum(float(v) for k, v in post.items() if v is not None and name in k.split("+"))
+    return sum(_number(v) or 0.0 for k, v in post.items() if name in k.split("+"))
 
 
 def top_model(row) -> str:
@@ -79,7 +79,7 @@ def top_model(row) -> str:
     if isinstance(model, str):
         return model
     post = row.get("posterior") or {}
-    vals = {k: float(v) for k, v in post.items() if v is not None and math.isfinite(float(v))}
+    vals = {k: _number(v) for k, v in post.items() if _number(v) is not None}
     if vals:
         return max(vals, key=vals.get)
     return "+".join(named(row)) or "none"
@@ -90,7 +90,7 @@ def claimed(row, p: float = CLAIM_PROBABILITY):
     post = row.get("posterior")
     if not post:
         return None
-    return any(k != "none" and v is not None and float(v) >= p for k, v in post.items())
+    return any(k != "none" and _number(v) is not None and _number(v) >= p for k, v in post.items())
 
 
 def interval(row, name: str, parameter: str):
@@ -98,8 +98,8 @@ def interval(row, name: str, parameter: str):
     for e in row.get("effects") or ():
         if isinstance(e, dict) and e.get("name") == name:
             iv = (e.get("intervals") or {}).get(parameter)
-            if iv is not None and len(iv) == 2 and None not in iv:
-                return float(iv[0]), float(iv[1])
+            if isinstance(iv, (list, tuple)) and len(iv) == 2 and None not in map(_number, iv):
+                return _number(iv[0]), _number(iv[1])
     return None
 
 
@@ -107,9 +107,10 @@ def side(name: str, magnitude: float, threshold) -> str:
     """``beyond`` when ``magnitude`` of effect ``name`` lies past the detectability
     ``threshold`` (above it for effects that grow with their value, below it for clutch
     capacity and transducer cut-off), ``below`` when not, ``unknown`` without a threshold."""
-    if threshold is None or not math.isfinite(float(threshold)):
+    threshold = _number(threshold)
+    if threshold is None:
         return "unknown"
-    past = magnitude > float(threshold) if EFFECTS[name].grows else magnitude < float(threshold)
+    past = magnitude > threshold if EFFECTS[name].grows else magnitude < threshold
     return "beyond" if past else "below"
 
 
@@ -262,10 +263,10 @@ def case_row(row) -> str:
     points and the ramps and in all; the held-out reduced chi^2 of the calibrated model and of
     the verdict's model; the training one; the learning rate η; the magnitudes of the most
     probable model's effects (fitted whatever the verdict; adopted only with
-    ``missing_effect``) with their 90 % intervals, in each effect's unit; for a single hidden
-    effect the diagnosis's detectability threshold of it and the side its true magnitude lies
-    on (:func:`side`); the model runs; the diagnosis's own wall time (``wall_time_s`` [s],
-    without the synthesis)."""
+    ``missing_effect``) with their 90 % intervals, in each effect's unit (not printed); for a
+    single hidden effect the diagnosis's detectability threshold of it and the side its true
+    magnitude lies on (:func:`side`); the model runs; the diagnosis's own wall time
+    (``wall_time_s`` [s], without the synthesis)."""
     like = row.get("likelihood") or {}
     fitted = []
     for e in row.get("effects") or ():

@@ -139,6 +139,7 @@ def test_beyond_means_below_the_threshold_for_capacity_and_cutoff():
     assert B.side("transducer_bandwidth", 150.0, 300.0) == "beyond"
     assert B.side("turbine_drag", 6.0, 3.0) == "beyond" and B.side("turbine_drag", 1.5, 3.0) == "below"
     assert B.side("turbine_drag", 1.5, None) == "unknown"
+    assert B.side("turbine_drag", 1.5, "620") == B.side("turbine_drag", 1.5, float("nan")) == "unknown"
 
 
 def test_truth_shape_ranges_lie_inside_the_library_bounds_and_draws_inside_them():
@@ -259,8 +260,10 @@ def test_the_summary_of_several_files_counts_each_case_once(bench, tmp_path, cap
 def test_the_controls_chi2_range_includes_both_ends():
     rows = [{"id": f"c{i}", "kind": "control", "truth": truth(), "likelihood": {"reduced_chi2_held_out": v}}
             for i, v in enumerate([0.49, 0.5, 1.0, 1.5, 1.51, float("nan"), None])]
+    rows += [{"id": "cs", "kind": "control", "truth": truth(), "likelihood": {"reduced_chi2_held_out": "1.0"}},
+             {"id": "cb", "kind": "control", "truth": truth(), "likelihood": {"reduced_chi2_held_out": True}}]
     c = B.summary(lines(rows))["control"]
-    # NaN and None are no figure: five values, 0.5 and 1.5 inside
+    # NaN, None, a string and a bool are no figure: five values, 0.5 and 1.5 inside
     assert c["reduced_chi2_held_out_within"] == {"count": 3, "of": 5, "share": 0.6}
     assert c["reduced_chi2_held_out_below"]["count"] == 1 and c["reduced_chi2_held_out_above"]["count"] == 1
 
