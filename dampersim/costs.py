@@ -316,6 +316,12 @@ DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTION
 DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
 DIAGNOSIS_FIT_RUNS = 5 + 8 + 3 + 1  # magnitude grid + bounded refinement + verification + derivative runs
 DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
+#: screen runs per start beyond one per candidate: the short springs are read at 4 clearances
+#: (discrepancy.shapes.SCREEN_FACTORS), the other effects at their own shape
+DIAGNOSIS_SCREEN_EXTRA = 4 - 1
+#: runs before a shortlisted candidate's fit that choose its discrete shape: the short springs'
+#: 1 to 3 springs (discrepancy.shapes.SCREEN_CHOICES; naming.Namer.choose)
+DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
 DIAGNOSIS_PAIR_RUNS = 5 + 8 + 1 + 1  # a pair's second magnitude: grid + refinement + verification + derivative
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
@@ -350,8 +356,11 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     follow), coarse scan and Gauss-Newton (each iteration with up to two sensitivity steps)
     on the training points, the
     held-out check, the compare step's checks again at the calibrated set with one more
-    Gauss-Newton step and its held-out check, a screen per candidate from two starts, the shortlist's fits from
-    both starts (with their shape parameters) and their held-out checks, "no missing
+    Gauss-Newton step and its held-out check, a screen per candidate from two starts (the short
+    springs' at DIAGNOSIS_SCREEN_EXTRA more shapes, counted whether or not they are among the
+    candidates), the shortlist's fits from
+    both starts (with their shape parameters; the short springs' count chosen first by
+    DIAGNOSIS_CHOICE_RUNS runs) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), the
     leading effect fitted again with the calibration (and its held-out check), a pair of
     effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
@@ -365,9 +374,10 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += held
     # the checks again at the calibrated set, one Gauss-Newton step under them and its held-out check
     runs += DIAGNOSIS_RECHECK_RUNS * n + DIAGNOSIS_STEP_TRIALS * train + held
-    runs += DIAGNOSIS_STARTS * int(n_candidates) * train
+    runs += DIAGNOSIS_STARTS * (int(n_candidates) + (DIAGNOSIS_SCREEN_EXTRA if n_candidates else 0)) * train
     shortlist = min(DIAGNOSIS_SHORTLIST, max(1, int(n_candidates)))
     runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + DIAGNOSIS_SHAPE_RUNS * train + held)
+    runs += DIAGNOSIS_CHOICE_RUNS * train if n_candidates else 0
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
     runs += DIAGNOSIS_PAIR_RUNS * train + held

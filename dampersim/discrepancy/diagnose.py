@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, fitting, model_terms, pickup, ramp_models, selection
+from dampersim.discrepancy import design, drive, fitting, model_terms, pickup, ramp_models, selection, shapes
 from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
@@ -338,13 +338,14 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 report(0.78, "name: trying a pair of effects")
                 second = max((n for n in singles if n != best_single), key=lambda n: models[n]["log_z"])
                 # the first effect stays as fitted: its magnitude's and shapes' prior terms count
-                prior_1 = namer._magnitude_prior(best_single, f1["m"]) + sum(
-                    (math.log(v / f1["shape_start"][q]) / selection.SHAPE_PRIOR_SD) ** 2
-                    for q, v in f1.get("shapes", {}).items())
+                prior_1 = namer._magnitude_prior(best_single, f1["m"]) + namer.shape_prior(
+                    best_single, {**f1.get("shape_start", {}), **f1.get("shapes", {})})
                 label = "+".join(sorted([best_single, second]))
+                # the second effect at the shape its own fit reached, held (its prior term counts)
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
-                                jac=namer.jac_of(f1))
+                                jac=namer.jac_of(f1), shape=namer.shape_values(second, models[second]["system"]))
                 if fit is not None:
+                    fit["log_mass"] = f1.get("log_mass", 0.0) + models[second].get("log_mass", 0.0)
                     fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]
                     fit["columns"] = [f1["column"], fit["column"]]
@@ -412,7 +413,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
 
         for j, name in enumerate(cands):
             report(0.82 + 0.06 * j / len(cands), f"detectability: {name}")
-            typ = screen[name]["y"] if screen[name]["start"] == "calibrated" and "refactored" not in models["none"] else None
+            at_cal = screen[name]["start"] == "calibrated" and "refactored" not in models["none"]
+            typ = screen[name]["y_library"] if at_cal else None
             detect[name] = namer.detectability(name, y_tr, models["none"]["nuisance"], typ, priors, ramp_gain, eta,
                                                namer.jac_of(models["none"]))
         # 4) augment
@@ -518,12 +520,25 @@ def _effects_of(label, fit) -> list:
         sd = math.sqrt(max(float(cov[n_cal + j, n_cal + j]), 0.0)) if cov is not None else math.nan
         params = {e.magnitude: m}
         intervals = {e.magnitude: selection.interval90(math.log(m), sd)}
-        for k, (q, v) in enumerate(fit.get("shapes", {}).items()):
-            i = n_cal + len(names) + k
+        for q, v in _reported_shapes(name, fit, len(names)).items():
             params[q] = v
-            intervals[q] = selection.interval90(math.log(v), math.sqrt(max(float(cov[i, i]), 0.0)))
+            if q in fit.get("shape_start", {}):  # a fitted shape; a discrete one the screen chose has none
+                i = n_cal + len(names) + list(fit["shape_start"]).index(q)
+                intervals[q] = selection.interval90(math.log(v), math.sqrt(max(float(cov[i, i]), 0.0)))
         out.append({"name": name, "parameters": params, "intervals": intervals})
     return out
+
+
+def _reported_shapes(name, fit, n_effects: int) -> dict:
+    """The shape values a single effect's model holds: its fitted shapes (where the shape step
+    left them, or where the fit started when the step was refused) and its discrete choices
+    (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`); none for a pair, whose second
+    effect keeps the shape of its own fit."""
+    if n_effects != 1:
+        return {}
+    eff = getattr(fit["system"].effects, name)
+    return {**fit.get("shape_start", {}), **fit.get("shapes", {}),
+            **{q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}}
 
 
 def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfitted) -> list:

@@ -212,10 +212,29 @@ def with_effect(system, name: str, values: dict | None = None, enabled: bool = T
     return with_updates(system, updates)
 
 
+def clip_to_range(v: float, meta: dict) -> float:
+    """v inside a parameter's accepted range (``meta`` from :func:`parameters_of`; an open lower
+    bound above 0 is kept just above it)."""
+    lo, hi = meta["min"], meta["max"]
+    if lo is not None:
+        v = max(v, lo * 1.0001 if lo > 0 else v)
+    if hi is not None:
+        v = min(v, hi)
+    return float(v)
+
+
+def clip_magnitude(name: str, m: float) -> float:
+    """Magnitude ``m`` of effect ``name`` kept inside its parameter's accepted range (an
+    open lower bound of 0 kept strictly positive)."""
+    e = info(name)
+    meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
+    return clip_to_range(m, meta) if meta["min"] is None or meta["min"] > 0 else max(clip_to_range(m, meta), 1e-12)
+
+
 def enabled_effects(system) -> list[str]:
     """Names of the effects switched on in ``system``."""
     return [n for n in NAMES if getattr(system.effects, n).enabled]
 
 
 __all__ = ["EffectInfo", "EFFECTS", "NAMES", "info", "parameters_of", "describe", "catalogue",
-           "parse_effect_spec", "with_effect", "enabled_effects"]
+           "parse_effect_spec", "with_effect", "clip_to_range", "clip_magnitude", "enabled_effects"]

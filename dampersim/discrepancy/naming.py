@@ -15,25 +15,18 @@ import math
 
 import numpy as np
 
-from dampersim.discrepancy import drive, selection, unnamed
-from dampersim.discrepancy.effects import info, parameters_of, with_effect
+from dampersim.discrepancy import drive, selection, shapes, unnamed
+from dampersim.discrepancy.effects import clip_magnitude, clip_to_range as _clip, info, parameters_of, with_effect
 from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
     _effect_grid, _lstsq_bounded, calibrated_system, first_lower, prior_step
 from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, GAIN_PRIOR_SD
+from dampersim.discrepancy.shapes import SHAPES
 
 #: log step of the finite differences for an effect's magnitude
 FD_STEP = 0.1
 #: log step of the finite differences for shape parameters: small, since a tuned absorber's
 #: response is sharply non-linear in its tuning order (2 % is 0.04 orders at order 2)
 SHAPE_FD_STEP = 0.02
-#: shape parameters fitted with an effect's magnitude (log scale, prior SHAPE_PRIOR_SD around
-#: the start value): the pendulum's tuning order and damping, the clutch's slip law, the
-#: short springs' clearance; the other effects have one parameter that matters
-SHAPES = {
-    "pendulum_absorber": ("order", "damping"),
-    "clutch_slip": ("slip_speed", "viscous"),
-    "inner_short_springs": ("clearance",),
-}
 #: a candidate's second start is fitted too when its screen evidence is within this many
 #: nats of the preferred start's (e^3 = 20: the linear screen may misjudge closer calls)
 SECOND_START_NATS = 3.0
@@ -84,49 +77,65 @@ class Namer:
     # --- screen -----------------------------------------------------------------------------
     def screen(self, name):
         """Linearised joint fit of the effect at its typical magnitude with a re-calibration,
-        from each start (scale at least MIN_SCREEN_SCALE: an effect cannot act backwards).
-        Keeps the start whose joint model has the higher evidence: {start, scale,
-        rel_log_evidence (against the better of the starts' "none" evidences), cost, y,
-        parts (each start's standardised residual, signature or None, factors), start_z
-        (each start's linear log evidence, -inf where its run failed)}."""
+        from each start (scale at least MIN_SCREEN_SCALE: an effect cannot act backwards) and
+        at each screened shape (shapes.variants; for most effects only the parameter set's).
+        Keeps the start and shape of highest evidence plus log prior weight: {start, shape ({}:
+        the set's own), scale, rel_log_evidence (the shapes' prior-weighted sum at the better
+        start against the better of the starts' "none" evidences), cost, y, y_library (that
+        start's run at the set's own shape, None if it failed), parts (per start: standardised
+        residual, [(signature or None, log weight)] per shape, factors), start_z (per start,
+        the shape-summed log evidence; -inf: every run failed)}."""
         e = info(name)
-        best, parts, start_z = None, [], {}
+        own = self.library_effect(name)
+        variants = shapes.variants(name, own)
+        best, parts, start_z, kept = None, [], {}, {}
         for start, (s0, x0, y_s) in self.starts.items():
-            ye, failed = self.runs(with_effect(s0, name, {e.magnitude: e.magnitudes[1]}), name)
-            with self.lik.using(self.lik.profile(y_s, self.train)[1]):  # this start's own nuisance
+            nu = self.lik.profile(y_s, self.train)[1]  # this start's own nuisance
+            with self.lik.using(nu):
                 r = self.lik.mvec(self.train) - self.lik.vec(y_s, self.train)
-                d = None if failed else self.w(ye - y_s)
-            parts.append((r, d, x0))
-            if failed:
-                cand = {"start": start, "scale": 0.0, "z": -math.inf, "cost": math.inf, "y": None}
-            else:
-                z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
-                                                               min_scale=MIN_SCREEN_SCALE)
-                cand = {"start": start, "scale": sc, "z": z, "cost": c, "y": ye}
-            start_z[start] = cand["z"]
-            if best is None or cand["z"] > best["z"]:
-                best = cand
+            ds, scored, y_lib = [], [], None
+            for vals, lw in variants:
+                ye, failed = self.runs(with_effect(s0, name, {**vals, e.magnitude: e.magnitudes[1]}), name)
+                with self.lik.using(nu):
+                    d = None if failed else self.w(ye - y_s)
+                ds.append((d, lw))
+                if failed:
+                    cand = {"start": start, "shape": vals, "scale": 0.0, "z": -math.inf, "cost": math.inf, "y": None}
+                else:
+                    z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
+                                                                   min_scale=MIN_SCREEN_SCALE)
+                    cand = {"start": start, "shape": vals, "scale": sc, "z": z + lw, "cost": c, "y": ye}
+                    if all(v == getattr(own, q) for q, v in vals.items()):
+                        y_lib = ye
+                scored.append((vals, cand["z"]))
+                if best is None or cand["z"] > best["z"]:
+                    best = cand
+            kept[start] = y_lib
+            parts.append((r, ds, x0))
+            start_z[start] = shapes.logsumexp(z for _, z in scored)
         best.pop("z")
+        best["y_library"] = kept[best["start"]]
         best["parts"], best["start_z"] = parts, start_z
         best["rel_log_evidence"] = self.screen_evidence(best, 1.0)
         return best
 
-    def _screen_z(self, r, d, x0, eta: float) -> float:
-        """The linear screen's log evidence of one start with the likelihood tempered by eta
-        (residual, Jacobian and signature scaled by sqrt(eta): exact for the linear model)."""
-        if d is None:
-            return -math.inf
+    def _screen_z(self, r, ds, x0, eta: float) -> float:
+        """The linear screen's log evidence of one start, summed over its screened shapes with
+        their prior weights ([(signature or None, log weight)]), with the likelihood tempered by
+        eta (residual, Jacobian and signature scaled by sqrt(eta): exact for the linear model)."""
         k = math.sqrt(eta)
-        return selection.linear_screen_evidence(k * r, k * self.jac, k * d, x0, PRIOR_LOG_SD,
-                                                min_scale=MIN_SCREEN_SCALE)[0]
+        return shapes.logsumexp(
+            -math.inf if d is None else lw + selection.linear_screen_evidence(
+                k * r, k * self.jac, k * d, x0, PRIOR_LOG_SD, min_scale=MIN_SCREEN_SCALE)[0]
+            for d, lw in ds)
 
     def screen_evidence(self, entry, eta: float) -> float:
         """A screened candidate's log evidence relative to "none" at learning rate eta: its
-        best start against the better of the starts' "none" evidences."""
+        best start (its shapes summed) against the better of the starts' "none" evidences."""
         k = math.sqrt(eta)
         z_none = max(selection.linear_screen_evidence(k * r, k * self.jac, None, x0, PRIOR_LOG_SD)[0]
                      for r, _, x0 in entry["parts"])
-        return max(self._screen_z(r, d, x0, eta) for r, d, x0 in entry["parts"]) - z_none
+        return max(self._screen_z(r, ds, x0, eta) for r, ds, x0 in entry["parts"]) - z_none
 
     # --- fits --------------------------------------------------------------------------------
     def _magnitude_prior(self, name, m) -> float:
@@ -137,17 +146,64 @@ class Namer:
         """Fit effect ``name`` from the start its screen preferred; the other start is fitted
         too when the preferred fit failed or when the screen could not tell the starts apart
         (their linear evidences within SECOND_START_NATS: the linearisation may rank them
-        wrongly). The fits that succeeded, best first by cost (may be empty)."""
+        wrongly). Both hold the screen's shape and :meth:`choose`'s discrete choice, whose log
+        prior mass (``log_mass``) joins their evidence. The fits that succeeded, best first by
+        cost (may be empty)."""
         pref = screened["start"]
         zs = screened.get("start_z", {})
-        fits = [f for f in [self.fit(name, pref)] if f is not None]
+        shape, log_mass = self.choose(name, screened)
+        fits = [f for f in [self.fit(name, pref, shape=shape)] if f is not None]
         for other in (s for s in self.starts if s != pref):
             close = math.isfinite(zs.get(other, -math.inf)) and zs[other] >= zs.get(pref, math.inf) - SECOND_START_NATS
             if not fits or close:
-                fits += [f for f in [self.fit(name, other)] if f is not None]
+                fits += [f for f in [self.fit(name, other, shape=shape)] if f is not None]
+        for f in fits:
+            f["log_mass"] = log_mass
         return sorted(fits, key=lambda f: f["cost"])
 
-    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None):
+    def choose(self, name, screened) -> tuple:
+        """(shape, log prior mass) to fit an effect with discrete shapes at (shapes.SCREEN_CHOICES):
+        each choice runs once from the screen's start and shape at the magnitude that keeps the
+        screen's total (shapes.magnitude_at_choice: the same count x stiffness), and the lowest
+        objective (:meth:`_trial`) wins. The linear screen scales a signature as a whole, so two
+        springs at 360 N m/rad look to it as three at 240; below the clearance each short pair
+        lacks its full-length spring whatever the stiffness, which real runs see. The mass:
+        shapes.choice_log_mass. Every run failed, or no discrete shapes: (the screen's shape, 0)."""
+        shape = dict(screened.get("shape") or {})
+        options = shapes.choices(name)
+        if not options:
+            return shape, 0.0
+        e = info(name)
+        s0, x0, _ = self.starts[screened["start"]]
+        held = {q: getattr(self.library_effect(name), q) for q in options[0]}
+        m = e.magnitudes[1] * max(float(screened.get("scale", 1.0)), MIN_SCREEN_SCALE)
+        scored = []
+        for choice in options:
+            mk = clip_magnitude(name, shapes.magnitude_at_choice(name, m, held, choice))
+            c, _ = self._trial(name, s0, x0, {**shape, **choice, e.magnitude: mk}, name, self.jac,
+                               self._magnitude_prior(name, mk) + self.shape_prior(name, shape))
+            scored.append(({**shape, **choice}, -0.5 * c))
+        if not any(math.isfinite(z) for _, z in scored):  # every choice failed: the set's own, as the screen ran it
+            return shape, 0.0
+        best = max(scored, key=lambda t: t[1])[0]
+        return best, shapes.choice_log_mass(name, best, scored)
+
+    def library_effect(self, name):
+        """Effect ``name``'s parameters in the parameter set as given: the centre of its shapes'
+        priors and of the screen's grid."""
+        return getattr(self.starts["estimated"][0].effects, name)
+
+    def shape_values(self, name, system) -> dict:
+        """The fitted and screened shape values of effect ``name`` in ``system``."""
+        eff = getattr(system.effects, name)
+        keys = [*SHAPES.get(name, ()), *shapes.SCREEN_CHOICES.get(name, {})]
+        return {q: getattr(eff, q) for q in keys}
+
+    def shape_prior(self, name, values: dict) -> float:
+        """The objective's prior term of effect ``name``'s continuous shapes at ``values``."""
+        return shapes.prior_term(name, values, self.library_effect(name))
+
+    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None):
         """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple
         (system, x, y) to fit on top of another effect): a five-value grid, a bounded search
         in log magnitude, a linearised re-calibration at every trial, then real runs against
@@ -156,7 +212,9 @@ class Namer:
         run failed. extra_prior: prior terms of parameters fitted before (a pair's first
         effect); label: the model failed runs are recorded against (default ``name``); jac: the
         factors' Jacobian of the linearised re-calibration (default the calibration's; a pair
-        on top of a re-calibrated effect passes that effect's, :meth:`jac_of`)."""
+        on top of a re-calibrated effect passes that effect's, :meth:`jac_of`); shape: the effect's
+        shape values held through the fit (default the parameter set's), their prior term
+        counted in the objective."""
         from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
 
         e = info(name)
@@ -164,27 +222,13 @@ class Namer:
         jc = self.jac if jac is None else jac
         s0, x0, _ = self.starts[start] if isinstance(start, str) else start
         tried = {}
+        shape = dict(shape or {})
+        extra_prior = extra_prior + self.shape_prior(name, shape)
 
         def at(m):
             if m not in tried:
-                ym, failed = self.runs(with_effect(s0, name, {e.magnitude: float(m)}), label)
-                if failed:
-                    tried[m] = (math.inf, x0)
-                    return tried[m]
-                # two candidates for the calibration at this magnitude: the start's factors as
-                # they are (exact: the robust loss with the nuisance fitted to this run), and a
-                # linearised re-calibration under the prior around this run (at its own
-                # nuisance); the re-calibrated factors are verified by real runs below
-                extra = self._magnitude_prior(name, m) + extra_prior
-                loss0, nu = self.lik.profile(ym, self.train)
-                exact = loss0 + float(np.sum(x0 ** 2)) / PRIOR_LOG_SD ** 2 + extra
-                with self.lik.using(nu):
-                    r = self.lik.mvec(self.train) - self.lik.vec(ym, self.train)
-                dx = _lstsq_bounded(jc, r, x0)
-                rr = r - jc @ dx
-                lin = (float(rr @ rr) + self.lik.nuisance_prior(nu) + float(np.sum((x0 + dx) ** 2)) / PRIOR_LOG_SD ** 2
-                       + extra)
-                tried[m] = (exact, x0) if exact <= lin else (lin, x0 + dx)
+                tried[m] = self._trial(name, s0, x0, {**shape, e.magnitude: float(m)}, label, jc,
+                                       self._magnitude_prior(name, m) + extra_prior)
             return tried[m]
 
         grid = _effect_grid(name)
@@ -202,18 +246,36 @@ class Namer:
         best = None
         for xo in options:
             sysx = _with_factors(self.starts, base, xo)
-            ys, failed = self.runs(with_effect(sysx, name, {e.magnitude: m}), label)
+            ys, failed = self.runs(with_effect(sysx, name, {**shape, e.magnitude: m}), label)
             c = math.inf if failed else self.cost(ys, xo, self._magnitude_prior(name, m) + extra_prior)
             if best is None or c < best["cost"]:
                 best = {"cost": c, "m": float(m), "x": xo, "y": ys, "base": base,
                         "start": start if isinstance(start, str) else "pair",
-                        "system": with_effect(sysx, name, {e.magnitude: m}), "shapes": {}}
+                        "system": with_effect(sysx, name, {**shape, e.magnitude: m}), "shapes": {}}
         if not math.isfinite(best["cost"]):
             return None
         moved, step = fd_magnitude(name, m)
         yd, failed = self.runs(with_effect(best["system"], name, {e.magnitude: moved}), label)
         best["column"] = np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - best["y"]) / step)
         return best
+
+    def _trial(self, name, s0, x0, values, label, jac, extra) -> tuple:
+        """(objective, factors) of effect ``name`` at ``values`` on top of start system s0 with
+        factors x0, the better of two calibrations: x0 as it is (exact: the robust loss with the
+        nuisance fitted to this run) and a linearised re-calibration under the prior around
+        this run (Jacobian ``jac``, at the run's own nuisance; :meth:`fit` verifies its factors
+        by real runs). extra: the effect parameters' prior terms. (inf, x0) when the run fails."""
+        ym, failed = self.runs(with_effect(s0, name, values), label)
+        if failed:
+            return math.inf, x0
+        loss0, nu = self.lik.profile(ym, self.train)
+        exact = loss0 + float(np.sum(x0 ** 2)) / PRIOR_LOG_SD ** 2 + extra
+        with self.lik.using(nu):
+            r = self.lik.mvec(self.train) - self.lik.vec(ym, self.train)
+        dx = _lstsq_bounded(jac, r, x0)
+        rr = r - jac @ dx
+        lin = float(rr @ rr) + self.lik.nuisance_prior(nu) + float(np.sum((x0 + dx) ** 2)) / PRIOR_LOG_SD ** 2 + extra
+        return (exact, x0) if exact <= lin else (lin, x0 + dx)
 
     def recalibrate(self, models, held_pts, bias=None) -> bool:
         """Give "no missing effect" the calibration factors every single-effect fit reached.
@@ -270,8 +332,8 @@ class Namer:
 
     def refit(self, name, fit):
         """Fit effect ``name`` again with the calibration factors, by Gauss-Newton on the six log
-        factors and the log magnitude together from the estimated factors (shape parameters at
-        the library's values; :meth:`fit_shapes` may move them after), with sensitivities taken
+        factors and the log magnitude together from the estimated factors (shape parameters held
+        at ``fit``'s; :meth:`fit_shapes` may move them after), with sensitivities taken
         afresh at every iteration (CAL_DERIVATIVE_STEPS[0] for a factor, FD_STEP for the
         magnitude) and at most REFIT_ITERATIONS iterations; a parameter whose derivative run
         fails is held where it is for that iteration. Each step weights the points by the robust
@@ -291,12 +353,14 @@ class Namer:
         h = CAL_DERIVATIVE_STEPS[0]
         n = self.jac.shape[1]
         x, m = np.zeros(n), float(fit["m"])
+        shape = self.shape_values(name, fit["system"]) if "system" in fit else {}
+        shape_term = self.shape_prior(name, shape)
 
         def system_at(xs, ms):
-            return with_effect(_with_factors(self.starts, None, xs), name, {e.magnitude: ms})
+            return with_effect(_with_factors(self.starts, None, xs), name, {**shape, e.magnitude: ms})
 
         def cost(ys, xs, ms):
-            return self.cost(ys, xs, self._magnitude_prior(name, ms))
+            return self.cost(ys, xs, self._magnitude_prior(name, ms) + shape_term)
 
         def trial(xs, ms, step, frac):
             """(objective, factors, magnitude, coefficients) a fraction frac along step."""
@@ -332,12 +396,13 @@ class Namer:
                 break
             c, x, m, y = found
         return {"cost": c, "m": m, "x": x, "y": y, "base": None, "start": "refit", "system": system_at(x, m),
-                "shapes": {}, "column": jac[:, n], "jac": jac[:, :n]}
+                "shapes": {}, "column": jac[:, n], "jac": jac[:, :n], "log_mass": fit.get("log_mass", 0.0)}
 
     def fit_shapes(self, name, fit):
         """One Gauss-Newton step on the effect's shape parameters (log scale, prior
-        SHAPE_PRIOR_SD) jointly with its magnitude and the calibration, accepted when a real
-        run lowers the objective. The step weights the points by the robust weights of the
+        SHAPE_PRIOR_SD around the parameter set's values, whichever shape the fit started from;
+        discrete shapes stay as chosen) jointly with its magnitude and the calibration,
+        accepted when a real run lowers the objective. The step weights the points by the robust weights of the
         fit's own model (:meth:`_at_own_weights`), as :meth:`refit`'s steps do. The columns are
         those the evidence reads: standardised at the stored weights and nuisance (after
         :meth:`refit`, its factors' and magnitude's at its last iteration's nuisance; the
@@ -346,12 +411,13 @@ class Namer:
         own nuisance, a difference of first order in the nuisance's change that the real run
         accepting or refusing the step covers. Adds the shape columns to ``fit`` (for the
         evidence and the intervals) and returns it."""
-        shapes = SHAPES.get(name, ())
-        if not shapes or fit is None or fit.get("base") is not None:  # not on top of another effect
+        fitted = SHAPES.get(name, ())
+        if not fitted or fit is None or fit.get("base") is not None:  # not on top of another effect
             return fit
         meta = {p["name"]: p for p in parameters_of(name)}
-        cur = getattr(fit["system"].effects, name)
-        start = {q: float(getattr(cur, q)) for q in shapes if float(getattr(cur, q)) > 0}
+        held = self.shape_values(name, fit["system"])
+        own = self.library_effect(name)
+        start = {q: float(held[q]) for q in fitted if float(held[q]) > 0}
         cols = []
         for q, v in start.items():
             up = _clip(v * math.exp(SHAPE_FD_STEP), meta[q])
@@ -364,17 +430,17 @@ class Namer:
         n = self.jac.shape[1]
         prec = np.concatenate([self.prec_cal, [1.0 / selection.MAGNITUDE_PRIOR_SD ** 2],
                                np.full(len(cols), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
-        centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])], np.zeros(len(cols))])
+        centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])],
+                                 [_log_ratio(float(getattr(own, q)), v) for q, v in start.items()]])
         _, r, rw = self._at_own_weights(fit["y"])
         step = prior_step(jac * rw[:, None], r * rw, prec, centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
         m = clip_magnitude(name, fit["m"] * math.exp(float(step[n])))
         x = np.clip(fit["x"] + step[:n], -CAL_BOUND, CAL_BOUND)
         e = info(name)
-        sysn = with_effect(_with_factors(self.starts, None, x), name, {**new, e.magnitude: m})
+        sysn = with_effect(_with_factors(self.starts, None, x), name, {**held, **new, e.magnitude: m})
         yn, failed = self.runs(sysn, name)
-        extra = self._magnitude_prior(name, m) + sum(
-            (math.log(new[q] / start[q]) / selection.SHAPE_PRIOR_SD) ** 2 for q in new)
+        extra = self._magnitude_prior(name, m) + self.shape_prior(name, new)
         c = math.inf if failed else self.cost(yn, x, extra)
         if c < fit["cost"]:
             fit.update({"cost": c, "m": m, "x": x, "y": yn, "system": sysn, "shapes": new})
@@ -417,7 +483,9 @@ class Namer:
             shift = eta * (cov @ (jac.T @ bias))
             cov = cov + np.outer(shift, shift)
         loss = self.data_loss(fit["y"], fit["nuisance"])
-        return selection.log_evidence(fit["cost"], jac, prec, eta, loss, self._offset(fit, names)), cov
+        # plus the log prior mass of the discrete shapes the screen chose (0 for most effects)
+        log_z = selection.log_evidence(fit["cost"], jac, prec, eta, loss, self._offset(fit, names))
+        return log_z + fit.get("log_mass", 0.0), cov
 
     def _evidence_columns(self, fit, names) -> tuple:
         """(Jacobian, prior precisions) of a fitted model's parameters in the evidence's order."""
@@ -441,17 +509,17 @@ class Namer:
         return {"r_fit": r, "jac": jac, "prec": prec, "offset": self._offset(fit, names), "eta": float(eta),
                 "basis": unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])}
 
-    @staticmethod
-    def _offset(fit, names) -> np.ndarray:
+    def _offset(self, fit, names) -> np.ndarray:
         """The fitted parameters minus their prior centres, in the evidence's column order:
         calibration factors, magnitudes (log, against the typical value), shapes (log,
-        against their start), channel log gain and delay."""
+        against the parameter set's values), channel log gain and delay."""
         mags = [fit.get("m_first", fit.get("m")), fit.get("m")][-len(names):] if names else []
-        shapes = fit.get("shapes") or {}
+        moved = fit.get("shapes") or {}
         start = fit.get("shape_start") or {}
+        own = self.library_effect(names[-1]) if start else None
         return np.concatenate([np.asarray(fit["x"], dtype=float),
                                [math.log(m / info(n).magnitudes[1]) for n, m in zip(names, mags)],
-                               [math.log(shapes[q] / v) if q in shapes else 0.0 for q, v in start.items()],
+                               [_log_ratio(moved.get(q, v), float(getattr(own, q))) for q, v in start.items()],
                                np.asarray(fit["nuisance"], dtype=float)])
 
     def data_loss(self, y, nuisance) -> float:
@@ -507,14 +575,6 @@ class Namer:
         return selection.threshold_magnitude(mags, gains, needed, e.grows, (meta["min"], meta["max"]))
 
 
-def clip_magnitude(name: str, m: float) -> float:
-    """Magnitude ``m`` of effect ``name`` kept inside its parameter's accepted range (an
-    open lower bound of 0 kept strictly positive)."""
-    e = info(name)
-    meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
-    return _clip(m, meta) if meta["min"] is None or meta["min"] > 0 else max(_clip(m, meta), 1e-12)
-
-
 def fd_magnitude(name: str, m: float) -> tuple:
     """(moved magnitude, log step) for a finite difference of effect ``name``'s magnitude at
     ``m``: FD_STEP forwards, backwards where forwards would leave the accepted range."""
@@ -525,19 +585,15 @@ def fd_magnitude(name: str, m: float) -> tuple:
     return down, math.log(down / m)
 
 
+def _log_ratio(a: float, b: float) -> float:
+    """log(a / b), 0 where either is not positive (a shape whose prior centre is 0 has no log scale)."""
+    return math.log(a / b) if a > 0 and b > 0 else 0.0
+
+
 def _with_factors(starts, base, x):
     """The estimated parameter set (the estimated start's) with calibration factors exp(x),
     or ``base`` unchanged when fitting on top of another effect."""
     return base if base is not None else calibrated_system(starts["estimated"][0], x)
-
-
-def _clip(v, meta) -> float:
-    lo, hi = meta["min"], meta["max"]
-    if lo is not None:
-        v = max(v, lo * 1.0001 if lo > 0 else v)
-    if hi is not None:
-        v = min(v, hi)
-    return float(v)
 
 
 __all__ = ["SHAPES", "MIN_SCREEN_SCALE", "SECOND_START_NATS", "REFIT_ITERATIONS", "FD_STEP", "Namer",

@@ -15,7 +15,7 @@ class _Recorder(Namer):
         self.starts = {"calibrated": None, "estimated": None}
         self.failing, self.calls = set(failing), []
 
-    def fit(self, name, start, extra_prior=0.0, label=None):
+    def fit(self, name, start, extra_prior=0.0, label=None, jac=None, shape=None):
         self.calls.append(start)
         if start in self.failing:
             return None

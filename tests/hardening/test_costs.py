@@ -190,9 +190,10 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
 def test_diagnosis_counts_follow_the_workflow():
     """The run counts are copied from dampersim.discrepancy.diagnose (a package above the
     cost model): a change there must be carried over here."""
-    from dampersim.discrepancy import design, naming
+    from dampersim.discrepancy import design, naming, shapes
     from dampersim.discrepancy import diagnose as dg
-    from dampersim.discrepancy.effects import EFFECTS
+    from dampersim.discrepancy.effects import EFFECTS, NAMES
+    from dampersim.parameters import default_parameters
 
     defaults = {k: p.default for k, p in inspect.signature(dg.diagnose).parameters.items()}
     assert costs.DIAGNOSIS_ITERATIONS == defaults["calibration_iterations"]
@@ -216,6 +217,13 @@ def test_diagnosis_counts_follow_the_workflow():
     assert costs.DIAGNOSIS_REFIT_RUNS == 1 + naming.REFIT_ITERATIONS * (
         len(dg.CALIBRATION) + 1 + len(dg.CAL_STEP_FRACTIONS)) + costs.DIAGNOSIS_SHAPE_RUNS
     assert costs.DIAGNOSIS_SHAPE_RUNS == max(len(v) for v in naming.SHAPES.values()) + 1
+    # the screen's extra shapes: the effect with the most screened variants, beyond its one own shape
+    own = default_parameters().effects
+    assert costs.DIAGNOSIS_SCREEN_EXTRA == max(len(shapes.variants(n, getattr(own, n))) for n in NAMES) - 1
+    assert sum(len(shapes.variants(n, getattr(own, n))) > 1 for n in NAMES) == 1  # counted once, for one effect
+    # ... and the runs that choose its discrete shape, one per choice
+    assert costs.DIAGNOSIS_CHOICE_RUNS == max(len(shapes.choices(n)) for n in NAMES)
+    assert sum(bool(shapes.choices(n)) for n in NAMES) == 1
     assert costs.DIAGNOSIS_DETECT_RUNS == len(EFFECTS["clutch_slip"].magnitudes)
     assert costs.DIAGNOSIS_DESIGN_RUNS >= len(design.DESIGN_SPEEDS) * len(design.DESIGN_TORQUES) * 5
     assert costs.DIAGNOSIS_DESIGN_S == pytest.approx(0.6 + design.DESIGN_RECORD)
@@ -228,8 +236,9 @@ def test_diagnosis_counts_follow_the_workflow():
     # 12 points: 8 training, 4 held out (every third)
     # (the recheck at the calibrated factors: 9 runs per point, one Gauss-Newton step's three
     # trials on the training points and its held-out check)
-    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 16 * 8
-                                           + 3 * (2 * 17 * 8 + 3 * 8 + 4) + 3 * 8 + 4 + 34 * 8 + 4 + 15 * 8 + 4
+    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 2 * (8 + 3) * 8
+                                           + 3 * (2 * 17 * 8 + 3 * 8 + 4) + 3 * 8  # the short springs' count
+                                           + 3 * 8 + 4 + 34 * 8 + 4 + 15 * 8 + 4
                                            + 3 * 8 * 8)
 
 
