@@ -34,9 +34,9 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7e10 step·DOF (about 78 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 6.55e10 by
-:func:`diagnosis_cost`, is admitted, 6 % below it, and took 878 s on 2 idle cores for 1872
-of its 3039 bounded runs; the limit applies to every kind of request). Both are server
+one core at the rate: the bundled example campaign's diagnosis, bounded at 6.7e10 by
+:func:`diagnosis_cost`, is admitted, 4 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3111; the limit applies to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
 (default 1 GiB).

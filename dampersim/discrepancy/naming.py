@@ -45,7 +45,7 @@ class Namer:
 
     def __init__(self, runner, lik, train, points, jac, starts, failures):
         self.runner, self.lik, self.train, self.points = runner, lik, train, points
-        self.jac, self.starts, self.failures = jac, starts, failures
+        self.jac, self.starts, self.failures, self.base = jac, starts, failures, starts["estimated"][0]
         self.prec_cal = np.full(jac.shape[1], 1.0 / PRIOR_LOG_SD ** 2)
 
     # --- runs and costs -------------------------------------------------------------------
@@ -189,9 +189,9 @@ class Namer:
         return best, shapes.choice_log_mass(name, best, scored)
 
     def library_effect(self, name):
-        """Effect ``name``'s parameters in the parameter set as given: the centre of its shapes'
-        priors and of the screen's grid."""
-        return getattr(self.starts["estimated"][0].effects, name)
+        """Effect ``name``'s parameters in the parameter set as given (``base``, the estimated
+        start's): the centre of its shapes' priors and of the screen's grid."""
+        return getattr(self.base.effects, name)
 
     def shape_values(self, name, system) -> dict:
         """The fitted and screened shape values of effect ``name`` in ``system``."""
