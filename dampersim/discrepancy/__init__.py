@@ -7,7 +7,9 @@ browser), drive (running the model on measured input), tracking (order coefficie
 measured points on the low-passed measured input speed), effects (the library of candidate
 effects), likelihood (complex order residuals, their uncertainties, channel nuisance, robust
 loss), fitting (calibration arithmetic), selection (Laplace evidence, posterior, intervals,
-detection thresholds), naming (screen, fits, shapes, detectability), ramps (windup curves
+detection thresholds), naming (screen, fits, evidence), shapes (the shape parameters
+screened, fitted and chosen, and their priors), detect (an effect's detection threshold for
+the campaign), ramps (windup curves
 as predictions), design (next test points), outcome (the result record and its sentence),
 diagnose (the workflow itself), report and report_tables (a diagnosis as a document, its
 summary rows and tables), synth, daq and truths (synthetic campaigns with hidden effects,

@@ -15,12 +15,13 @@ import math
 
 import numpy as np
 
-from dampersim.discrepancy import drive, selection, shapes, unnamed
+from dampersim.discrepancy import detect, drive, selection, shapes, unnamed
 from dampersim.discrepancy.effects import clip_magnitude, clip_to_range as _clip, info, parameters_of, with_effect
 from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
     _effect_grid, _lstsq_bounded, calibrated_system, first_lower, prior_step
 from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, GAIN_PRIOR_SD
 from dampersim.discrepancy.shapes import SHAPES
+from dampersim.errors import ParameterError
 
 #: log step of the finite differences for an effect's magnitude
 FD_STEP = 0.1
@@ -87,7 +88,7 @@ class Namer:
         the shape-summed log evidence; -inf: every run failed)}."""
         e = info(name)
         own = self.library_effect(name)
-        variants = shapes.variants(name, own)
+        variants = shapes.renormalised(self.admissible(name, shapes.variants(name, own))) or [({}, 0.0)]
         best, parts, start_z, kept = None, [], {}, {}
         for start, (s0, x0, y_s) in self.starts.items():
             nu = self.lik.profile(y_s, self.train)[1]  # this start's own nuisance
@@ -113,7 +114,8 @@ class Namer:
             kept[start] = y_lib
             parts.append((r, ds, x0))
             start_z[start] = shapes.logsumexp(z for _, z in scored)
-        best.pop("z")
+        if not math.isfinite(best.pop("z")):  # every run failed: the set's own shape, as before any grid
+            best["shape"] = {}
         best["y_library"] = kept[best["start"]]
         best["parts"], best["start_z"] = parts, start_z
         best["rel_log_evidence"] = self.screen_evidence(best, 1.0)
@@ -167,24 +169,28 @@ class Namer:
         screen's total (shapes.magnitude_at_choice: the same count x stiffness), and the lowest
         objective (:meth:`_trial`) wins. The linear screen scales a signature as a whole, so two
         springs at 360 N m/rad look to it as three at 240; below the clearance each short pair
-        lacks its full-length spring whatever the stiffness, which real runs see. The mass:
-        shapes.choice_log_mass. Every run failed, or no discrete shapes: (the screen's shape, 0)."""
+        lacks its full-length spring whatever the stiffness, which real runs see. Choices the set
+        refuses are left out (:meth:`admissible`). The mass: shapes.choice_log_mass. Every run
+        failed: the set's own choice, with the equal share; no discrete shapes: (shape, 0)."""
         shape = dict(screened.get("shape") or {})
-        options = shapes.choices(name)
-        if not options:
+        if name not in shapes.SCREEN_CHOICES:
             return shape, 0.0
+        own = self.library_effect(name)
+        options = [c for c, _ in self.admissible(name, [({**shape, **c}, 0.0) for c in shapes.choices(name, own)])]
+        if len(options) < 2:  # nothing to choose among (the set accepts one choice at most)
+            return (options[0] if options else shape), 0.0
         e = info(name)
         s0, x0, _ = self.starts[screened["start"]]
-        held = {q: getattr(self.library_effect(name), q) for q in options[0]}
+        held = {q: getattr(own, q) for q in shapes.SCREEN_CHOICES[name]}
         m = e.magnitudes[1] * max(float(screened.get("scale", 1.0)), MIN_SCREEN_SCALE)
         scored = []
         for choice in options:
             mk = clip_magnitude(name, shapes.magnitude_at_choice(name, m, held, choice))
-            c, _ = self._trial(name, s0, x0, {**shape, **choice, e.magnitude: mk}, name, self.jac,
+            c, _ = self._trial(name, s0, x0, {**choice, e.magnitude: mk}, name, self.jac,
                                self._magnitude_prior(name, mk) + self.shape_prior(name, shape))
-            scored.append(({**shape, **choice}, -0.5 * c))
+            scored.append((choice, -0.5 * c))
         if not any(math.isfinite(z) for _, z in scored):  # every choice failed: the set's own, as the screen ran it
-            return shape, 0.0
+            return shape, shapes.choice_log_mass(name, held, scored)
         best = max(scored, key=lambda t: t[1])[0]
         return best, shapes.choice_log_mass(name, best, scored)
 
@@ -192,6 +198,20 @@ class Namer:
         """Effect ``name``'s parameters in the parameter set as given (``base``, the estimated
         start's): the centre of its shapes' priors and of the screen's grid."""
         return getattr(self.base.effects, name)
+
+    def admissible(self, name, options) -> list:
+        """The (shape values, weight) of ``options`` the parameter set accepts for effect ``name``
+        (a clearance must leave the short spring longer than its block arc, a count must stay
+        below the inner set's pairs): the others are left out, not run."""
+        e = info(name)
+        out = []
+        for vals, lw in options:
+            try:
+                with_effect(self.base, name, {**vals, e.magnitude: e.magnitudes[1]})
+            except ParameterError:
+                continue
+            out.append((vals, lw))
+        return out
 
     def shape_values(self, name, system) -> dict:
         """The fitted and screened shape values of effect ``name`` in ``system``."""
@@ -531,48 +551,9 @@ class Namer:
     # --- detectability --------------------------------------------------------------------
     def detectability(self, name, y_cal, nuisance, y_typ, priors, ramp_gain=None, eta: float = 1.0,
                       jac=None) -> float | None:
-        """The magnitude at the detection threshold of effect ``name`` for this campaign:
-        where the chi^2 improvement it would bring, after the calibration and the channels'
-        gain and delay have absorbed what they can (its signature projected off those
-        directions under their priors), minus what an unnamed smooth misfit beside "none"
-        would take of it (:func:`dampersim.discrepancy.unnamed.signature_share`, on the
-        torsional points and the ramps) and its magnitude prior's cost, reaches what a
-        posterior of DETECTION_POSTERIOR against "none" needs
-        (:func:`~dampersim.discrepancy.selection.detection_chi2`). ramp_gain(name, m): (the
-        chi^2 the ramps would add at magnitude m, the unnamed misfit's ramp D at that
-        signature, at none; see :func:`~dampersim.discrepancy.unnamed.signature_share`) (None:
-        torsional points only); eta: the
-        likelihood's learning rate, which scales the torsional chi^2 (a threshold read against
-        the misfit the calibrated model really leaves); jac: the calibrated model's factor
-        Jacobian (default the calibration's; :meth:`jac_of` of "none")."""
-        e = info(name)
-        meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
-        cal = self.starts["calibrated"][0]
-        nu_cols, nu_prec = self._nuisance(y_cal, nuisance)
-        absorb = np.column_stack([self.jac if jac is None else jac, nu_cols])
-        prec = np.concatenate([self.prec_cal, nu_prec])
-        a = eta * (absorb.T @ absorb) + np.diag(prec)
-        basis = unnamed.torsion_basis(self.lik, y_cal, self.train, nuisance)
-        mags, gains = [], []
-        for m in e.magnitudes:
-            if m == e.magnitudes[1] and y_typ is not None:
-                y = y_typ
-            else:
-                y, failed = self.runs(with_effect(cal, name, {e.magnitude: m}), name)
-                if failed:
-                    continue
-            with self.lik.using(nuisance):
-                d = self.w(y - y_cal)
-            proj = absorb.T @ d
-            mags.append(m)
-            ramps, *ramp_misfit = ramp_gain(name, m) if ramp_gain is not None else (0.0, 0.0, 0.0)
-            torsional = eta * float(d @ d) - eta ** 2 * float(proj @ np.linalg.solve(a, proj))
-            share = unnamed.signature_share(d, absorb, prec, eta, basis, ramp_misfit)
-            gains.append(torsional - share + ramps - self._magnitude_prior(name, m))
-        if len(mags) < 2:
-            return None
-        needed = selection.detection_chi2(priors[name], priors["none"])
-        return selection.threshold_magnitude(mags, gains, needed, e.grows, (meta["min"], meta["max"]))
+        """The magnitude at the detection threshold of effect ``name`` for this campaign
+        (:func:`dampersim.discrepancy.detect.threshold`, which takes the same arguments)."""
+        return detect.threshold(self, name, y_cal, nuisance, y_typ, priors, ramp_gain, eta, jac)
 
 
 def fd_magnitude(name: str, m: float) -> tuple:

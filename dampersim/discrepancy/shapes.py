@@ -53,6 +53,13 @@ def logsumexp(values) -> float:
     return top + math.log(sum(math.exp(v - top) for v in vals))
 
 
+def renormalised(options) -> list:
+    """[(values, log weight)] with the weights scaled to sum to one (those left after some
+    were dropped)."""
+    norm = logsumexp(lw for _, lw in options)
+    return [(v, lw - norm) for v, lw in options]
+
+
 def variants(name: str, effect) -> list:
     """The continuous shape values the screen reads effect ``name`` at: a list of (values
     {parameter: value}, log prior weight), the weights summing to one over the list.
@@ -70,12 +77,14 @@ def variants(name: str, effect) -> list:
     return out
 
 
-def choices(name: str) -> list:
-    """Effect ``name``'s discrete shape choices (:data:`SCREEN_CHOICES`) as a list of
-    {parameter: value}; [] for an effect without any."""
+def choices(name: str, effect=None) -> list:
+    """Effect ``name``'s discrete shape choices (:data:`SCREEN_CHOICES`, and the parameter set's
+    own value from ``effect`` when it is not among them) as a list of {parameter: value}; [] for
+    an effect without any."""
     out = [{}]
     for q, values in SCREEN_CHOICES.get(name, {}).items():
-        out = [{**a, q: v} for a in out for v in values]
+        own = [] if effect is None or getattr(effect, q) in values else [getattr(effect, q)]
+        out = [{**a, q: v} for a in out for v in sorted([*values, *own])]
     return out if len(out) > 1 else []
 
 
@@ -91,11 +100,11 @@ def magnitude_at_choice(name: str, m: float, held: dict, choice: dict) -> float:
 
 def choice_log_mass(name: str, values: dict, scored) -> float:
     """The log prior mass a model at the discrete choices in ``values`` carries: the choices'
-    equal prior share, -log(number of choices), plus log sum_k exp(s_k - s_mine) over the
-    best score s_k of each choice in ``scored`` ([(shape values, log evidence or -objective / 2)]),
-    the estimate of how much the other choices would add to the sum over choices. 0 for an
-    effect without discrete choices; between -log(number of choices) (the others explain
-    nothing) and 0 for the best choice."""
+    equal prior share, -log(number of choices scored), plus log sum_k exp(s_k - s_mine) over
+    the best score s_k of each choice in ``scored`` ([(shape values, log evidence or -objective
+    / 2)], one entry or more per choice tried; -inf where its run failed), the estimate of how
+    much the other choices would add to the sum over choices. 0 for an effect without discrete
+    choices; between -log(number of choices) (the others explain nothing) and 0 for the best."""
     keys = list(SCREEN_CHOICES.get(name, {}))
     if not keys:
         return 0.0
@@ -103,7 +112,7 @@ def choice_log_mass(name: str, values: dict, scored) -> float:
     for vals, z in scored:
         k = tuple(vals.get(q) for q in keys)
         best[k] = max(best.get(k, -math.inf), z)
-    share = -math.log(math.prod(len(SCREEN_CHOICES[name][q]) for q in keys))
+    share = -math.log(max(1, len(best)))
     mine = best.get(tuple(values.get(q) for q in keys), -math.inf)
     if not math.isfinite(mine):
         return share
@@ -122,5 +131,5 @@ def prior_term(name: str, values: dict, centre) -> float:
     return total
 
 
-__all__ = ["SHAPES", "SCREEN_FACTORS", "SCREEN_CHOICES", "PER_UNIT", "logsumexp", "variants", "choices",
+__all__ = ["SHAPES", "SCREEN_FACTORS", "SCREEN_CHOICES", "PER_UNIT", "logsumexp", "renormalised", "variants", "choices",
            "magnitude_at_choice", "choice_log_mass", "prior_term"]

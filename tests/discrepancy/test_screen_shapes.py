@@ -17,6 +17,7 @@ from dampersim.discrepancy.effects import NAMES
 from dampersim.discrepancy.fitting import CALIBRATION
 from dampersim.discrepancy.likelihood import Likelihood
 from dampersim.discrepancy.selection import SHAPE_PRIOR_SD
+from dampersim.parameters import with_updates
 
 from tests.discrepancy.toy_namer import BASE, log_factors, patch_runs
 
@@ -134,3 +135,72 @@ def test_the_screen_finds_the_clearance_and_the_choice_the_count(namer, monkeypa
     start = 0.05 * math.sqrt(2.0)
     assert abs(held["clearance"] - TRUTH["clearance"]) < 0.15 * abs(start - TRUTH["clearance"])
     assert fit["m"] == pytest.approx(TRUTH["stiffness"], rel=0.02)
+
+
+def test_the_screen_sums_the_grid_under_its_prior_weights(namer):
+    # a start's screen evidence is the log-sum over its shapes of (linear evidence + log prior
+    # weight), against "none": two shapes with the same signature at weights 0.3 and 0.7 give the
+    # evidence of one (a max would give log 0.7 less); a shape whose run failed adds nothing
+    n = len(namer.lik.mvec(namer.train))
+    r = np.random.default_rng(2).normal(size=n)
+    d = np.random.default_rng(4).normal(size=n)
+    x0 = np.zeros(len(CALIBRATION))
+
+    def rel(ds):
+        return namer.screen_evidence({"parts": [(r, ds, x0)]}, 1.0)
+
+    one = rel([(d, 0.0)])
+    assert math.isfinite(one)
+    assert rel([(d, math.log(0.3)), (d, math.log(0.7))]) == pytest.approx(one, abs=1e-12)
+    assert rel([(d, math.log(0.3)), (None, math.log(0.7))]) == pytest.approx(one + math.log(0.3), abs=1e-12)
+    assert rel([(None, 0.0)]) == -math.inf
+    # tempered (eta < 1), the weights stay as they are: only the likelihood is scaled
+    half = namer.screen_evidence({"parts": [(r, [(d, 0.0)], x0)]}, 0.5)
+    assert namer.screen_evidence({"parts": [(r, [(d, math.log(0.3)), (None, 0.0)], x0)]}, 0.5) == \
+        pytest.approx(half + math.log(0.3), abs=1e-12)
+
+
+def test_the_count_choice_mass_enters_the_evidence_once(namer):
+    fit = namer.fit_shapes(NAME, namer.fit_candidate(NAME, namer.screen(NAME))[0])
+    fit["effects"], fit["columns"] = [NAME], [fit["column"], *fit.get("shape_columns", [])]
+    fit["nuisance"] = namer.lik.profile(fit["y"], namer.train)[1]
+    with_mass, _ = namer.evidence(fit, [NAME])
+    without, _ = namer.evidence({**fit, "log_mass": 0.0}, [NAME])
+    assert with_mass - without == pytest.approx(fit["log_mass"], abs=1e-9) and fit["log_mass"] < 0.0
+    # the offsets read the clearance against the parameter set's 0.1 rad, not the grid value it
+    # started from
+    offset = namer._offset(fit, [NAME])
+    k = len(CALIBRATION) + 1 + list(fit["shape_start"]).index("clearance")
+    held = namer.shape_values(NAME, fit["system"])["clearance"]
+    assert offset[k] == pytest.approx(math.log(held / OWN.clearance), rel=1e-12)
+
+
+def test_shapes_and_counts_the_set_refuses_are_not_run(namer):
+    # an inner set of three pairs takes at most two short springs: the count of three is left out,
+    # not run (the set's check would stop the diagnosis), and the choice is between one and two
+    namer.base = with_updates(BASE, {"inner.count": 3})
+    options = namer.admissible(NAME, [({"count": c}, 0.0) for c in (1, 2, 3)])
+    assert [v["count"] for v, _ in options] == [1, 2]
+    shape, log_mass = namer.choose(NAME, {"start": "calibrated", "shape": {"clearance": 0.07}, "scale": 1.5})
+    assert shape["count"] in (1, 2) and log_mass <= 0.0 and log_mass >= -math.log(2.0) - 1e-12
+    # a clearance that leaves the short spring no longer than its block arc is left out of the grid
+    slot = BASE.inner.slot_arc
+    grid = [({"clearance": c}, 0.0) for c in (0.05, slot - 1e-6)]
+    assert [v["clearance"] for v, _ in namer.admissible(NAME, grid)] == [0.05]
+
+
+def test_a_single_effect_reports_its_shapes_and_its_count():
+    from dampersim.discrepancy import diagnose as dg
+
+    n_cal = len(CALIBRATION)
+    system = naming.with_effect(BASE, NAME, {"stiffness": 250.0, "clearance": 0.0707, "count": 3})
+    cov = np.diag(np.r_[np.full(n_cal, 0.01), 0.04, 0.09, 0.01, 0.01])  # factors, stiffness, clearance, channels
+    fit = {"effects": [NAME], "m": 250.0, "cov": cov, "system": system, "shape_start": {"clearance": 0.0707},
+           "shapes": {}}  # the shape step refused: the clearance where the fit started
+    (entry,) = dg._effects_of(NAME, fit)
+    assert entry["parameters"] == {"stiffness": 250.0, "clearance": 0.0707, "count": 3}
+    assert set(entry["intervals"]) == {"stiffness", "clearance"}  # the count is chosen, not fitted: no interval
+    low, high = entry["intervals"]["clearance"]
+    assert math.log(high / low) == pytest.approx(2 * 1.6448536 * 0.3, rel=1e-6)  # its own variance, 0.09
+    fit["shapes"] = {"clearance": 0.066}  # the step moved it
+    assert dg._effects_of(NAME, fit)[0]["parameters"]["clearance"] == 0.066
