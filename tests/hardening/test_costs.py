@@ -187,6 +187,13 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
     assert vd.ramp_share(50.0, 1.0, 4.0) == pytest.approx(50.0 + 48.0 / 4)
 
 
+def test_the_run_bounds_docs_state():
+    """docs/discrepancy.md (the cost paragraph under Naming and Known limits, Speed) quotes these
+    bounds: 12 points and 8 candidates without and with one ramp, 40 points with three."""
+    assert costs.diagnosis_runs(12, 8) == 3036
+    assert costs.diagnosis_runs(12, 8, 1) == 3089 and costs.diagnosis_runs(40, 8, 3) == 10396
+
+
 def test_diagnosis_counts_follow_the_workflow():
     """The run counts are copied from dampersim.discrepancy.diagnose (a package above the
     cost model): a change there must be carried over here."""
