@@ -325,7 +325,6 @@ DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
 DIAGNOSIS_PAIR_RUNS = 5 + 8 + 1 + 1  # a pair's second magnitude: grid + refinement + verification + derivative
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
-DIAGNOSIS_REFIT_CANDIDATES = 2  # leading effects re-calibrated at most (naming.REFIT_CANDIDATES)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration the six factors' and the magnitude's sensitivities and the step
 #: lengths tried, then its shape parameters
@@ -363,7 +362,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     both starts (with their shape parameters; the short springs' count chosen first by
     DIAGNOSIS_CHOICE_RUNS runs) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), the
-    two leading effects fitted again with the calibration (and their held-out checks), a pair of
+    leading effect fitted again with the calibration (and its held-out check), a pair of
     effects, the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
     next-test design's runs have their own length (:func:`diagnosis_cost`)."""
     n = max(0, int(n_points))
@@ -380,7 +379,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += shortlist * (DIAGNOSIS_STARTS * DIAGNOSIS_FIT_RUNS * train + DIAGNOSIS_SHAPE_RUNS * train + held)
     runs += DIAGNOSIS_CHOICE_RUNS * train if n_candidates else 0
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
-    runs += DIAGNOSIS_REFIT_CANDIDATES * (DIAGNOSIS_REFIT_RUNS * train + held)  # leading effects re-calibrated
+    runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
     runs += DIAGNOSIS_PAIR_RUNS * train + held
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, fitting, model_terms, outcome, pickup, ramp_models, selection
+from dampersim.discrepancy import design, drive, fitting, model_terms, pickup, ramp_models, selection, shapes
 from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
@@ -32,7 +32,7 @@ from dampersim.discrepancy.fitting import (CAL_BOUND, CAL_SCAN, CAL_STEP_FRACTIO
                                            first_lower)
 from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, measured_coefficients,
                                               residual_half_sigma, split_half_sigma)
-from dampersim.discrepancy.naming import REFIT_CANDIDATES, Namer
+from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
                                            Diagnosis, _not_diagnosed, _verdict_message, decide, locate, shortfall,
                                            speeds_of)
@@ -299,35 +299,22 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["effects"] = [name]
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
-        recalibrated, tried = None, []  # {effect, adopted, next}: the leading effects fitted again with the calibration
-
-        def above_noise(n):
-            return lik.robust_reduced_chi2(models[n]["y"], train, models[n]["nuisance"]) > \
-                noise_level(2 * len(train) * len(drive.ORDERS))
-
-        for _ in range(REFIT_CANDIDATES):
-            fitted = sorted((n for n in shortlisted if n in models), key=lambda n: -models[n]["log_z"])
-            lead = next((n for n in fitted if n not in tried), None)
-            if lead is None or not above_noise(fitted[0]) or not above_noise(lead):
-                break
-            # the best effect so far leaves the training misfit above the noise: the calibration without
-            # it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md, Naming,
-            # 3b); the next by evidence gets the same when the first one's re-calibration did not reach the noise
+        lead = max((n for n in shortlisted if n in models), key=lambda n: models[n]["log_z"], default=None)
+        recalibrated = None  # {effect, adopted} when the leading effect was fitted again with the calibration
+        if lead is not None and lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]) > \
+                noise_level(2 * len(train) * len(drive.ORDERS)):
+            # the leading effect leaves the training misfit above the noise: the calibration without
+            # it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md, Naming, 3b)
             report(0.76, f"name: re-calibrating with {lead}")
             first_fit, first_failures = models[lead], dict(failures.get(lead, {}))
             refit = namer.fit_shapes(lead, namer.refit(lead, first_fit))
-            entry = {"effect": lead, "adopted": False, "next": None}
+            recalibrated = {"effect": lead, "adopted": False}
             if refit is not None and refit["cost"] < first_fit["cost"]:
                 refit["effects"], refit["columns"] = [lead], [refit["column"], *refit.get("shape_columns", [])]
                 finish(lead, refit, [lead])
-                entry["adopted"] = refit["yh"] is not None
-            if not entry["adopted"]:  # kept only where it fits better and runs at every held-out point
+                recalibrated["adopted"] = refit["yh"] is not None
+            if not recalibrated["adopted"]:  # kept only where it fits better and runs at every held-out point
                 models[lead], failures[lead] = first_fit, first_failures
-            if recalibrated is None:
-                recalibrated = entry
-            else:
-                recalibrated["next"] = entry
-            tried.append(lead)
         if namer.recalibrate(models, held_pts, bias_w):  # "none" at the best factors a candidate's fit found
             cal, x, y_tr = namer.starts["calibrated"]
             y_cal[train], y_cal[held] = y_tr, models["none"]["yh"]
@@ -434,7 +421,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         final = models[top]
         y_aug = y_cal.copy()
         y_aug[train], y_aug[held] = final["y"], final["yh"]
-        effects_out = outcome.effects_of(top, final)
+        effects_out = _effects_of(top, final)
         effect = effects_out[0]["name"] if verdict == "missing_effect" else None
         eff_params = {}
         if effect:
@@ -520,6 +507,40 @@ def _learning_rate(namer, models, train) -> float:
     return selection.learning_rate(best[0], n, best[1])
 
 
+def _effects_of(label, fit) -> list:
+    """The ``effects`` entries of a fitted model: name, fitted parameters (magnitude and
+    shape parameters) and their 90 % intervals from the Laplace covariance."""
+    out = []
+    names = fit.get("effects", [])
+    cov = fit.get("cov")
+    n_cal = len(CALIBRATION)
+    for j, name in enumerate(names):
+        e = info(name)
+        m = fit["m"] if j == len(names) - 1 else fit.get("m_first", fit["m"])
+        sd = math.sqrt(max(float(cov[n_cal + j, n_cal + j]), 0.0)) if cov is not None else math.nan
+        params = {e.magnitude: m}
+        intervals = {e.magnitude: selection.interval90(math.log(m), sd)}
+        for q, v in _reported_shapes(name, fit, len(names)).items():
+            params[q] = v
+            if q in fit.get("shape_start", {}):  # a fitted shape; a discrete one the screen chose has none
+                i = n_cal + len(names) + list(fit["shape_start"]).index(q)
+                intervals[q] = selection.interval90(math.log(v), math.sqrt(max(float(cov[i, i]), 0.0)))
+        out.append({"name": name, "parameters": params, "intervals": intervals})
+    return out
+
+
+def _reported_shapes(name, fit, n_effects: int) -> dict:
+    """The shape values a single effect's model holds: its fitted shapes (where the shape step
+    left them, or where the fit started when the step was refused) and its discrete choices
+    (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`); none for a pair, whose second
+    effect keeps the shape of its own fit."""
+    if n_effects != 1:
+        return {}
+    eff = getattr(fit["system"].effects, name)
+    return {**fit.get("shape_start", {}), **fit.get("shapes", {}),
+            **{q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}}
+
+
 def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfitted) -> list:
     """One entry per candidate (and pair tried), most probable first."""
     rows = []
@@ -532,7 +553,7 @@ def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfi
                  "excluded": unfitted.get(name)}
         fails = dict(failures.get(name, {}))
         if fit is not None:
-            entry["parameters"] = {p: v for eff in outcome.effects_of(name, fit) for p, v in eff["parameters"].items()}
+            entry["parameters"] = {p: v for eff in _effects_of(name, fit) for p, v in eff["parameters"].items()}
             if fit["yh"] is not None:
                 entry["gap_held_out_nm"] = _rms(_resid(np.abs(fit["yh"]), meas[held]))
             else:

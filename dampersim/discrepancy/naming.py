@@ -36,9 +36,6 @@ MIN_SCREEN_SCALE = 0.05
 #: Gauss-Newton iterations of :meth:`Namer.refit` (each takes fresh sensitivities: seven runs per
 #: training point, then up to three step lengths)
 REFIT_ITERATIONS = 3
-#: leading effects :meth:`Namer.refit` may re-calibrate with, best by evidence first: the second only
-#: when the first's re-calibration leaves the best model's training misfit above the noise
-REFIT_CANDIDATES = 2
 
 
 class Namer:
@@ -580,5 +577,5 @@ def _with_factors(starts, base, x):
     return base if base is not None else calibrated_system(starts["estimated"][0], x)
 
 
-__all__ = ["SHAPES", "REFIT_CANDIDATES", "MIN_SCREEN_SCALE", "SECOND_START_NATS", "REFIT_ITERATIONS", "FD_STEP", "Namer",
+__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "SECOND_START_NATS", "REFIT_ITERATIONS", "FD_STEP", "Namer",
            "clip_magnitude", "fd_magnitude"]

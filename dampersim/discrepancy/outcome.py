@@ -3,15 +3,13 @@ diagnosed at all, the verdict's sentence and where the residual lies (locate).""
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from dampersim.discrepancy import selection, shapes
-from dampersim.discrepancy.effects import NAMES, info
-from dampersim.discrepancy.fitting import CALIBRATION, _rms
+from dampersim.discrepancy.effects import NAMES
+from dampersim.discrepancy.fitting import _rms
 from dampersim.discrepancy.selection import DETECTION_POSTERIOR
 
 #: fewest valid torsional test points a diagnosis accepts (every third is held out)
@@ -242,40 +240,6 @@ def locate(diag: Diagnosis, system) -> dict:
     return out
 
 
-def effects_of(label, fit) -> list:
-    """The ``effects`` entries of a fitted model: name, fitted parameters (magnitude and
-    shape parameters) and their 90 % intervals from the Laplace covariance."""
-    out = []
-    names = fit.get("effects", [])
-    cov = fit.get("cov")
-    n_cal = len(CALIBRATION)
-    for j, name in enumerate(names):
-        e = info(name)
-        m = fit["m"] if j == len(names) - 1 else fit.get("m_first", fit["m"])
-        sd = math.sqrt(max(float(cov[n_cal + j, n_cal + j]), 0.0)) if cov is not None else math.nan
-        params = {e.magnitude: m}
-        intervals = {e.magnitude: selection.interval90(math.log(m), sd)}
-        for q, v in reported_shapes(name, fit, len(names)).items():
-            params[q] = v
-            if q in fit.get("shape_start", {}):  # a fitted shape; a discrete one the screen chose has none
-                i = n_cal + len(names) + list(fit["shape_start"]).index(q)
-                intervals[q] = selection.interval90(math.log(v), math.sqrt(max(float(cov[i, i]), 0.0)))
-        out.append({"name": name, "parameters": params, "intervals": intervals})
-    return out
-
-
-def reported_shapes(name, fit, n_effects: int) -> dict:
-    """The shape values a single effect's model holds: its fitted shapes (where the shape step
-    left them, or where the fit started when the step was refused) and its discrete choices
-    (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`); none for a pair, whose second
-    effect keeps the shape of its own fit."""
-    if n_effects != 1:
-        return {}
-    eff = getattr(fit["system"].effects, name)
-    return {**fit.get("shape_start", {}), **fit.get("shapes", {}),
-            **{q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}}
-
-
 __all__ = ["MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "INSUFFICIENT", "Diagnosis", "decide",
            "not_adopted_reason", "speeds_of",
-           "shortfall", "locate", "effects_of", "reported_shapes"]
+           "shortfall", "locate"]
