@@ -82,7 +82,7 @@ class Namer:
         at each screened shape (shapes.variants; for most effects only the parameter set's).
         Keeps the start and shape of highest evidence plus log prior weight: {start, shape ({}:
         the set's own), scale, rel_log_evidence (the shapes' prior-weighted sum at the better
-        start against the better of the starts' "none" evidences), cost, y, y_library (that
+        start against the better of the starts' "none" evidences), cost, y_library (that
         start's run at the set's own shape, None if it failed), parts (per start: standardised
         residual, [(signature or None, log weight)] per shape, factors), start_z (per start,
         the shape-summed log evidence; -inf: every run failed)}."""
@@ -101,11 +101,11 @@ class Namer:
                     d = None if failed else self.w(ye - y_s)
                 ds.append((d, lw))
                 if failed:
-                    cand = {"start": start, "shape": vals, "scale": 0.0, "z": -math.inf, "cost": math.inf, "y": None}
+                    cand = {"start": start, "shape": vals, "scale": 0.0, "z": -math.inf, "cost": math.inf}
                 else:
                     z, sc, _, c = selection.linear_screen_evidence(r, self.jac, d, x0, PRIOR_LOG_SD,
                                                                    min_scale=MIN_SCREEN_SCALE)
-                    cand = {"start": start, "shape": vals, "scale": sc, "z": z + lw, "cost": c, "y": ye}
+                    cand = {"start": start, "shape": vals, "scale": sc, "z": z + lw, "cost": c}
                     if all(v == getattr(own, q) for q, v in vals.items()):
                         y_lib = ye
                 scored.append((vals, cand["z"]))
@@ -170,13 +170,15 @@ class Namer:
         objective (:meth:`_trial`) wins. The linear screen scales a signature as a whole, so two
         springs at 360 N m/rad look to it as three at 240; below the clearance each short pair
         lacks its full-length spring whatever the stiffness, which real runs see. Choices the set
-        refuses are left out (:meth:`admissible`). The mass: shapes.choice_log_mass. Every run
+        refuses are left out (:meth:`admissible`). The mass: shapes.choice_log_mass, from the
+        untempered objectives (bounded by log of the number of choices, it is not read again at
+        the learning rate). Every run
         failed: the set's own choice, with the equal share; no discrete shapes: (shape, 0)."""
         shape = dict(screened.get("shape") or {})
         if name not in shapes.SCREEN_CHOICES:
             return shape, 0.0
         own = self.library_effect(name)
-        options = [c for c, _ in self.admissible(name, [({**shape, **c}, 0.0) for c in shapes.choices(name, own)])]
+        options = [c for c, _ in self.admissible(name, [({**shape, **c}, 0.0) for c in shapes.choices(name)])]
         if len(options) < 2:  # nothing to choose among (the set accepts one choice at most)
             return (options[0] if options else shape), 0.0
         e = info(name)

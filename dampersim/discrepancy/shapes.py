@@ -77,14 +77,13 @@ def variants(name: str, effect) -> list:
     return out
 
 
-def choices(name: str, effect=None) -> list:
-    """Effect ``name``'s discrete shape choices (:data:`SCREEN_CHOICES`, and the parameter set's
-    own value from ``effect`` when it is not among them) as a list of {parameter: value}; [] for
-    an effect without any."""
+def choices(name: str) -> list:
+    """Effect ``name``'s discrete shape choices (:data:`SCREEN_CHOICES`) as a list of
+    {parameter: value}; [] for an effect without any. A parameter set whose own value lies
+    outside them is fitted at one of them when the effect is named."""
     out = [{}]
     for q, values in SCREEN_CHOICES.get(name, {}).items():
-        own = [] if effect is None or getattr(effect, q) in values else [getattr(effect, q)]
-        out = [{**a, q: v} for a in out for v in sorted([*values, *own])]
+        out = [{**a, q: v} for a in out for v in values]
     return out if len(out) > 1 else []
 
 
