@@ -453,7 +453,7 @@ class Namer:
         prec = np.concatenate([self.prec_cal, [1.0 / selection.MAGNITUDE_PRIOR_SD ** 2],
                                np.full(len(cols), 1.0 / selection.SHAPE_PRIOR_SD ** 2)])
         centre = np.concatenate([-fit["x"], [math.log(info(name).magnitudes[1] / fit["m"])],
-                                 [_log_ratio(float(getattr(own, q)), v) for q, v in start.items()]])
+                                 [shapes.log_ratio(float(getattr(own, q)), v) for q, v in start.items()]])
         _, r, rw = self._at_own_weights(fit["y"])
         step = prior_step(jac * rw[:, None], r * rw, prec, centre)
         new = {q: _clip(v * math.exp(float(step[n + 1 + j])), meta[q]) for j, (q, v) in enumerate(start.items())}
@@ -541,7 +541,7 @@ class Namer:
         own = self.library_effect(names[-1]) if start else None
         return np.concatenate([np.asarray(fit["x"], dtype=float),
                                [math.log(m / info(n).magnitudes[1]) for n, m in zip(names, mags)],
-                               [_log_ratio(moved.get(q, v), float(getattr(own, q))) for q, v in start.items()],
+                               [shapes.log_ratio(moved.get(q, v), float(getattr(own, q))) for q, v in start.items()],
                                np.asarray(fit["nuisance"], dtype=float)])
 
     def data_loss(self, y, nuisance) -> float:
@@ -566,11 +566,6 @@ def fd_magnitude(name: str, m: float) -> tuple:
         return up, math.log(up / m)
     down = clip_magnitude(name, m * math.exp(-FD_STEP))
     return down, math.log(down / m)
-
-
-def _log_ratio(a: float, b: float) -> float:
-    """log(a / b), 0 where either is not positive (a shape whose prior centre is 0 has no log scale)."""
-    return math.log(a / b) if a > 0 and b > 0 else 0.0
 
 
 def _with_factors(starts, base, x):

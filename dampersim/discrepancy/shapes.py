@@ -45,12 +45,12 @@ PER_UNIT = {"inner_short_springs": "count"}
 
 
 def logsumexp(values) -> float:
-    """log(sum(exp(values))), exact for a single value, -inf when every value is -inf."""
+    """log(sum(exp(values))) (scipy.special.logsumexp): exact for a single value, -inf when every
+    value is -inf or there is none."""
+    from scipy.special import logsumexp as lse  # scipy loads only when a diagnosis runs
+
     vals = [float(v) for v in values]
-    top = max(vals, default=-math.inf)
-    if not math.isfinite(top):
-        return top
-    return top + math.log(sum(math.exp(v - top) for v in vals))
+    return float(lse(vals)) if vals else -math.inf
 
 
 def renormalised(options) -> list:
@@ -125,10 +125,15 @@ def prior_term(name: str, values: dict, centre) -> float:
     total = 0.0
     for q in SHAPES.get(name, ()):
         c = centre[q] if isinstance(centre, dict) else float(getattr(centre, q))
-        if q in values and c > 0 and values[q] > 0:
-            total += (math.log(values[q] / c) / SHAPE_PRIOR_SD) ** 2
+        if q in values:
+            total += (log_ratio(values[q], c) / SHAPE_PRIOR_SD) ** 2
     return total
 
 
+def log_ratio(a: float, b: float) -> float:
+    """log(a / b), 0 where either is not positive (a shape whose prior centre is 0 has no log scale)."""
+    return math.log(a / b) if a > 0 and b > 0 else 0.0
+
+
 __all__ = ["SHAPES", "SCREEN_FACTORS", "SCREEN_CHOICES", "PER_UNIT", "logsumexp", "renormalised", "variants", "choices",
-           "magnitude_at_choice", "choice_log_mass", "prior_term"]
+           "magnitude_at_choice", "choice_log_mass", "prior_term", "log_ratio"]
