@@ -299,11 +299,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["effects"] = [name]
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
-        lead = selection.recalibration_target(shortlisted, models)  # the first by screen evidence among the fitted
-        recalibrated = None  # {effect, adopted} when that effect was fitted again with the calibration
+        lead = max((n for n in shortlisted if n in models), key=lambda n: models[n]["log_z"], default=None)
+        recalibrated = None  # {effect, adopted} when the leading effect was fitted again with the calibration
         if lead is not None and lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]) > \
                 noise_level(2 * len(train) * len(drive.ORDERS)):
-            # that effect leaves the training misfit above the noise: the calibration without
+            # the leading effect leaves the training misfit above the noise: the calibration without
             # it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md, Naming, 3b)
             report(0.76, f"name: re-calibrating with {lead}")
             first_fit, first_failures = models[lead], dict(failures.get(lead, {}))

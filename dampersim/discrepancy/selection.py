@@ -192,20 +192,6 @@ def threshold_magnitude(mags, chi2_gain, needed: float, grows: bool, bounds=(Non
     return val
 
 
-def recalibration_target(screen_order, fitted) -> str | None:
-    """The single effect that is fitted again together with the calibration (docs/discrepancy.md,
-    Naming 3b): the first of ``screen_order`` (the candidates by screen evidence, best first)
-    that is in ``fitted`` (the singles whose fit ran), or None.
-
-    The screen reads every candidate against the same calibrated residual; a fit then starts
-    from factors that a calibration made without any effect bent to imitate it, and how far
-    each fit gets from there differs by effect. The effect the screen puts first but whose
-    fit stops short is the one those factors hold back most, so the step goes to it rather
-    than to the leader by fitted evidence (the typical short-springs case: first by screen,
-    third by evidence, and the only fit that predicts the held-out points)."""
-    return next((name for name in screen_order if name in fitted), None)
-
-
 def held_out_penalty(lik, models, held, eta: float) -> dict:
     """{model: log-evidence penalty <= 0} for the fitted models whose held-out run worked:
     eta/2 times the amount by which the model's robust chi^2 on the held-out points (summed

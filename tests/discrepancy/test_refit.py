@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from dampersim import costs
-from dampersim.discrepancy import drive, naming, selection
+from dampersim.discrepancy import drive, naming
 from dampersim.discrepancy.fitting import CALIBRATION, PRIOR_LOG_SD
 from dampersim.discrepancy.selection import MAGNITUDE_PRIOR_SD
 from dampersim.discrepancy.likelihood import Likelihood
@@ -170,16 +170,3 @@ def test_with_weak_data_the_refit_lands_on_the_linear_models_posterior_mode(name
     # the channels' gain and delay, fitted with every trial (the analytic mode leaves them out),
     # move the answer by well under a tenth of that
     np.testing.assert_allclose(got, mode, atol=0.1 * shrink)
-
-
-def test_the_recalibration_goes_to_the_first_by_screen_among_the_fitted_not_the_evidence_leader():
-    # the typical short-springs case's order (docs/discrepancy.md, the short springs screened over
-    # their clearance): first by screen, third by fitted evidence; a candidate whose every fit
-    # failed is skipped, and with no fit there is no re-calibration
-    screen_order = ["inner_short_springs", "pendulum_absorber", "output_backlash"]
-    fitted = {"none": {"log_z": -139.3}, "output_backlash": {"log_z": -137.7},
-              "pendulum_absorber": {"log_z": -140.0}, "inner_short_springs": {"log_z": -146.3}}
-    assert selection.recalibration_target(screen_order, fitted) == "inner_short_springs"
-    del fitted["inner_short_springs"]
-    assert selection.recalibration_target(screen_order, fitted) == "pendulum_absorber"
-    assert selection.recalibration_target(screen_order, {"none": {}}) is None
