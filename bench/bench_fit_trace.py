@@ -1,0 +1,183 @@
+"""A benchmark run with the naming's fits traced: what each fitted model leaves at each training
+point, what the linear screen promised against what the fit reached, and the leading effect's
+re-calibration from other shapes.
+
+Runs ``bench/bench_discrepancy.py`` in this process with the arguments after ``--`` and writes
+one JSON line per event to ``--trace``:
+
+* ``screen``: a shortlisted candidate's screen evidence [nats], the screen's linearised
+  objective at its best scale and shape (least squares at the calibrated model's stored point
+  weights, not the fits' robust loss: compare it with the same form of "none"), that scale
+  (of the typical magnitude), its start, and the objectives of the fits made from it;
+* ``evidence``: each time a model's evidence is read (several times for "none" and for a
+  model refitted or tempered): its effects, its fit's start, learning rate, log evidence,
+  objective (robust loss plus priors), magnitude, and the reduced chi^2 of each training
+  point (unweighted, at the model's own channel nuisance);
+* ``refit`` (only when the re-calibration runs, docs/discrepancy.md, Naming 3b): the first
+  fit and the re-calibration before its shape step (objective, magnitude, log factors,
+  shapes); with ``--refit-shapes`` also side re-calibrations from those shapes, each before
+  and after its shape step. The side runs do not enter the diagnosis (their failed runs are
+  not recorded against the effect, and an error in one is written to the event), but they
+  are model runs: the case's run count and wall time include them;
+* ``shape_step``: every shape step (the first fits' and the re-calibration's): objective
+  before, and the fit after.
+
+The wrapping replaces methods of ``dampersim.discrepancy.naming.Namer`` while the benchmark
+runs. The figures of docs/discrepancy.md, "Re-calibrating the screen's leader", were read
+with an earlier form of this script (the same wrapping) against the library of commit
+4dad05a, where the re-calibration went to the short springs; on later commits it goes to
+the leader by fitted evidence, and side refits run only for the effect it goes to:
+
+    python bench/bench_fit_trace.py --trace t.jsonl \\
+        --refit-shapes '{"inner_short_springs": {"screen": {"clearance": 0.05, "count": 3}}}' -- \\
+        --only effect/inner_short_springs/typical/s0 --out r.jsonl --no-recommend --workers 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import runpy
+import sys
+
+from dampersim.discrepancy import drive, naming
+from dampersim.discrepancy.effects import info, with_effect
+from dampersim.errors import InputError, ParameterError
+from dampersim.parameters import default_parameters
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+WRAPPED = ("fit_candidate", "evidence", "refit", "fit_shapes")
+
+
+def _floats(values) -> list:
+    return [float(v) for v in values]
+
+
+def install(write, refit_shapes: dict) -> dict:
+    """Wrap Namer's screen-to-fit, evidence, re-calibration and shape steps so that each writes
+    its event through ``write`` (a callable taking a dict). Returns the plain methods
+    ({name: function}) for :func:`uninstall`."""
+    Namer = naming.Namer
+    plain = {attr: getattr(Namer, attr) for attr in WRAPPED}
+
+    def state(self, name, fit) -> dict | None:
+        if fit is None:
+            return None
+        return {"cost": float(fit["cost"]), "m": float(fit["m"]), "x": _floats(fit["x"]),
+                "shape": {k: float(v) for k, v in self.shape_values(name, fit["system"]).items()}}
+
+    def fit_candidate(self, name, screened):
+        fits = plain["fit_candidate"](self, name, screened)
+        write({"event": "screen", "name": name, "rel_log_evidence": float(screened["rel_log_evidence"]),
+               "screen_cost": float(screened["cost"]), "scale": float(screened["scale"]),
+               "start": screened["start"], "shape": {k: float(v) for k, v in (screened.get("shape") or {}).items()},
+               "fit_costs": [float(f["cost"]) for f in fits]})
+        return fits
+
+    def evidence(self, fit, names, bias=None, eta: float = 1.0):
+        out = plain["evidence"](self, fit, names, bias, eta)
+        chi2 = self.lik.point_chi2(fit["y"], self.train, fit.get("nuisance")) / (2 * len(drive.ORDERS))
+        write({"event": "evidence", "effects": list(names), "start": fit.get("start"), "eta": float(eta),
+               "log_evidence": float(out[0]), "cost": float(fit["cost"]), "m": float(fit.get("m") or 0.0),
+               "point_reduced_chi2": {p.id: float(c) for p, c in zip(self.points, chi2)}})
+        return out
+
+    def refit(self, name, fit):
+        out = plain["refit"](self, name, fit)
+        event = {"event": "refit", "name": name, "first_fit": state(self, name, fit), "refit": state(self, name, out),
+                 "side": []}
+        kept = dict(self.failures.get(name, {}))
+        for label, shape in refit_shapes.get(name, {}).items():
+            entry = {"from": label, "shape": shape}
+            try:
+                side = plain["refit"](self, name, dict(fit, system=with_effect(fit["system"], name, shape)))
+                entry["refit"] = state(self, name, side)
+                entry["after_shape_step"] = state(self, name, plain["fit_shapes"](self, name, side)) if side else None
+            except Exception as exc:  # a side run must not end the diagnosis: its error goes to the event
+                entry["error"] = f"{type(exc).__name__}: {exc}"
+            event["side"].append(entry)
+        self.failures[name] = kept  # the side runs' failed points are not the effect's
+        write(event)
+        return out
+
+    def fit_shapes(self, name, fit):
+        before = None if fit is None else float(fit["cost"])
+        out = plain["fit_shapes"](self, name, fit)
+        write({"event": "shape_step", "name": name, "cost_before": before, "fit": state(self, name, out)})
+        return out
+
+    for attr, wrapped in zip(WRAPPED, (fit_candidate, evidence, refit, fit_shapes)):
+        setattr(Namer, attr, wrapped)
+    return plain
+
+
+def uninstall(plain: dict) -> None:
+    """Put back the methods :func:`install` replaced."""
+    for attr, method in plain.items():
+        setattr(naming.Namer, attr, method)
+
+
+def checked_shapes(text: str) -> dict:
+    """{effect: {label: {shape values}}} from ``--refit-shapes`` (one set of values per effect, or
+    several labelled ones), each checked against the default parameter set before any run;
+    raises ValueError with what is accepted."""
+    accepted = ('accepted is an object of effect name -> shape values, or -> labels -> shape values, e.g. '
+                '{"inner_short_springs": {"clearance": 0.064, "count": 3}}')
+    try:
+        given = json.loads(text)
+    except ValueError as exc:
+        raise ValueError(f"--refit-shapes: not JSON ({exc}); {accepted}") from None
+    if not isinstance(given, dict) or not all(isinstance(v, dict) for v in given.values()):
+        raise ValueError(f"--refit-shapes: {accepted}")
+    out = {}
+    for name, values in given.items():
+        try:
+            info(name)
+        except InputError:
+            raise ValueError(f"--refit-shapes: {name!r} is not an effect of the library; {accepted}") from None
+        sets = values if values and all(isinstance(v, dict) for v in values.values()) else {"given": values}
+        for label, shape in sets.items():
+            try:
+                with_effect(default_parameters(), name, shape)
+            except (ParameterError, TypeError, ValueError, AttributeError) as exc:
+                raise ValueError(f"--refit-shapes: {name} {label}: {exc}") from None
+        out[name] = sets
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trace", required=True, help="JSON lines file the events are appended to")
+    ap.add_argument("--refit-shapes", default="{}",
+                    help='side re-calibrations: {effect: {shape values}} or {effect: {label: {shape values}}}')
+    ap.add_argument("bench_args", nargs=argparse.REMAINDER, help="-- then bench_discrepancy.py's arguments")
+    args = ap.parse_args(argv)
+    try:
+        shapes = checked_shapes(args.refit_shapes)
+    except ValueError as exc:
+        ap.error(str(exc))
+    rest = args.bench_args[1:] if args.bench_args[:1] == ["--"] else args.bench_args
+    if not rest:
+        ap.error("no benchmark arguments: give them after --, e.g. -- --only control/none/1 --out r.jsonl "
+                 "(without any, bench_discrepancy.py would run its whole matrix)")
+    argv0 = sys.argv
+    with open(args.trace, "a", encoding="utf-8") as fh:
+        def write(event):
+            fh.write(json.dumps(event) + "\n")
+            fh.flush()
+
+        plain = install(write, shapes)
+        sys.argv = [os.path.join(HERE, "bench_discrepancy.py"), *rest]
+        try:
+            runpy.run_path(sys.argv[0], run_name="__main__")
+        except SystemExit as exc:
+            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        finally:
+            uninstall(plain)
+            sys.argv = argv0
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,116 @@
+"""bench/bench_fit_trace.py's wrapping of the naming's steps, on the re-calibration toy of
+test_refit.py (smooth stand-in runs with known answers): the traced steps return what the
+plain ones return, and the events carry the figures the docs read from them."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import drive, naming
+
+from tests.discrepancy.benches import load_bench
+from tests.discrepancy.test_refit import NAME, _first_fit, namer  # noqa: F401  (namer: the fixture)
+
+trace = load_bench("bench_fit_trace")
+
+
+@pytest.fixture()
+def events(monkeypatch):
+    # the wrapping replaces Namer's methods: registered here so that the test restores them
+    for attr in trace.WRAPPED:
+        monkeypatch.setattr(naming.Namer, attr, getattr(naming.Namer, attr))
+    return []
+
+
+def _first(namer):
+    fit = _first_fit(namer, 0.0016)
+    fit["system"] = naming.with_effect(naming.calibrated_system(namer.starts["estimated"][0], fit["x"]), NAME,
+                                       {"inertia": 0.0016})
+    return fit
+
+
+def test_the_traced_refit_returns_the_plain_one_and_logs_the_side_refits(namer, events):  # noqa: F811
+    first = _first(namer)
+    plain = naming.Namer.refit(namer, NAME, first)
+    runs_plain = len(namer.calls)
+    side_shape = {"order": 2.1, "damping": 0.03}
+    trace.install(events.append, {NAME: {"other": side_shape}})
+    traced = naming.Namer.refit(namer, NAME, first)
+    assert traced["cost"] == plain["cost"] and np.array_equal(traced["x"], plain["x"])
+    (event,) = events
+    assert event["event"] == "refit" and event["name"] == NAME
+    assert event["first_fit"]["cost"] == first["cost"] and event["refit"]["cost"] == plain["cost"]
+    (side,) = event["side"]
+    assert side["from"] == "other" and side["refit"]["shape"]["order"] == 2.1
+    # the side refit started from the given shape, so it is another fit, and its runs are real
+    assert side["refit"]["cost"] != plain["cost"]
+    assert len(namer.calls) > 2 * runs_plain
+    # the side refit's shape step is in its entry; the effect's failures are those of the plain runs
+    assert side["after_shape_step"]["cost"] <= side["refit"]["cost"]
+    assert namer.failures[NAME] == {}
+    json.dumps(events)  # every event is plain JSON
+
+
+def test_a_side_refit_the_set_refuses_goes_to_its_event_and_leaves_the_fit_alone(namer, events):  # noqa: F811
+    first = _first(namer)
+    plain = naming.Namer.refit(namer, NAME, first)
+    trace.install(events.append, {NAME: {"bad": {"order": -1.0}}})
+    traced = naming.Namer.refit(namer, NAME, first)
+    assert traced["cost"] == plain["cost"]
+    (bad,) = events[0]["side"]
+    assert "error" in bad and "order" in bad["error"] and "refit" not in bad
+
+
+def test_the_shape_step_is_traced_with_the_objective_before_it(namer, events):  # noqa: F811
+    fit = naming.Namer.refit(namer, NAME, _first(namer))
+    before = fit["cost"]
+    trace.install(events.append, {})
+    out = naming.Namer.fit_shapes(namer, NAME, fit)
+    (event,) = events
+    assert event["event"] == "shape_step" and event["cost_before"] == before
+    assert event["fit"]["cost"] == out["cost"] <= before
+
+
+def test_the_traced_evidence_logs_each_training_points_reduced_chi2(namer, events):  # noqa: F811
+    first = _first(namer)
+    fit = naming.Namer.refit(namer, NAME, first)
+    fit.update({"effects": [NAME], "columns": [fit["column"]], "nuisance": namer.lik.profile(fit["y"], namer.train)[1]})
+    plain = naming.Namer.evidence(namer, fit, [NAME])
+    trace.install(events.append, {})
+    log_z, cov = naming.Namer.evidence(namer, fit, [NAME])
+    assert log_z == plain[0] and np.array_equal(cov, plain[1])
+    (event,) = events
+    assert list(event["point_reduced_chi2"]) == [p.id for p in namer.points]
+    # independently: the points' mean is the model's plain reduced chi^2 (equal point sizes);
+    # the tolerance covers the summation order only
+    mean = np.mean(list(event["point_reduced_chi2"].values()))
+    assert mean == pytest.approx(namer.lik.reduced_chi2(fit["y"], namer.train, fit["nuisance"]), rel=1e-12)
+    assert event["effects"] == [NAME] and event["log_evidence"] == plain[0]
+
+
+def test_main_hands_the_arguments_to_the_benchmark_and_puts_the_methods_back(tmp_path, capsys):
+    plain = {attr: getattr(naming.Namer, attr) for attr in trace.WRAPPED}
+    argv = list(sys.argv)
+    assert trace.main(["--trace", str(tmp_path / "t.jsonl"), "--", "--list", "--only", "control/none/1"]) == 0
+    assert "control/none/1" in capsys.readouterr().out
+    assert {attr: getattr(naming.Namer, attr) for attr in trace.WRAPPED} == plain and sys.argv == argv
+    with pytest.raises(SystemExit):  # no benchmark arguments would run the whole matrix
+        trace.main(["--trace", str(tmp_path / "t.jsonl")])
+    assert "no benchmark arguments" in capsys.readouterr().err
+
+
+def test_bad_side_shapes_are_refused_with_what_is_accepted(capsys, tmp_path):
+    with pytest.raises(SystemExit):
+        trace.main(["--trace", str(tmp_path / "t.jsonl"), "--refit-shapes", "{not json", "--", "--list"])
+    assert "accepted is an object" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        trace.main(["--trace", str(tmp_path / "t.jsonl"), "--refit-shapes", '{"a": 1}', "--", "--list"])
+    assert "accepted is an object of effect name" in capsys.readouterr().err
+    for shapes, said in (('{"nope": {}}', "not an effect"),
+                         ('{"inner_short_springs": {"clearnce": 0.05}}', "clearance"),
+                         ('{"inner_short_springs": {"clearance": -1}}', "accepted is a value")):
+        with pytest.raises(SystemExit):
+            trace.main(["--trace", str(tmp_path / "t.jsonl"), "--refit-shapes", shapes, "--", "--list"])
+        assert said in capsys.readouterr().err
