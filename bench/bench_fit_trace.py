@@ -24,9 +24,11 @@ one JSON line per event to ``--trace``:
 
 The wrapping replaces methods of ``dampersim.discrepancy.naming.Namer`` while the benchmark
 runs. The figures of docs/discrepancy.md, "Re-calibrating the screen's leader", were read
-with an earlier form of this script (the same wrapping) against the library of commit
-4dad05a, where the re-calibration went to the short springs; on later commits it goes to
-the leader by fitted evidence, and side refits run only for the effect it goes to:
+with two ad hoc wrappers of the same methods that this script joins (one for the
+re-calibration and shape steps, one for the screen and the evidence), against the library of
+commit 4dad05a, where the re-calibration went to the short springs. On later commits it
+goes to the leader by fitted evidence; side refits run only for the effect it goes to, and
+the script warns about a given effect that was never re-calibrated:
 
     python bench/bench_fit_trace.py --trace t.jsonl \\
         --refit-shapes '{"inner_short_springs": {"screen": {"clearance": 0.05, "count": 3}}}' -- \\
@@ -41,7 +43,7 @@ import os
 import runpy
 import sys
 
-from dampersim.discrepancy import drive, naming
+from dampersim.discrepancy import naming
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.errors import InputError, ParameterError
 from dampersim.parameters import default_parameters
@@ -77,7 +79,7 @@ def install(write, refit_shapes: dict) -> dict:
 
     def evidence(self, fit, names, bias=None, eta: float = 1.0):
         out = plain["evidence"](self, fit, names, bias, eta)
-        chi2 = self.lik.point_chi2(fit["y"], self.train, fit.get("nuisance")) / (2 * len(drive.ORDERS))
+        chi2 = self.lik.point_chi2(fit["y"], self.train, fit.get("nuisance")) / (2 * len(self.lik.orders))
         write({"event": "evidence", "effects": list(names), "start": fit.get("start"), "eta": float(eta),
                "log_evidence": float(out[0]), "cost": float(fit["cost"]), "m": float(fit.get("m") or 0.0),
                "point_reduced_chi2": {p.id: float(c) for p, c in zip(self.points, chi2)}})
@@ -167,16 +169,27 @@ def main(argv=None) -> int:
             fh.write(json.dumps(event) + "\n")
             fh.flush()
 
-        plain = install(write, shapes)
+        refitted = set()
+
+        def write_noting(event):
+            if event["event"] == "refit":
+                refitted.add(event["name"])
+            write(event)
+
+        plain = install(write_noting, shapes)
         sys.argv = [os.path.join(HERE, "bench_discrepancy.py"), *rest]
+        code = 0
         try:
             runpy.run_path(sys.argv[0], run_name="__main__")
         except SystemExit as exc:
-            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
         finally:
             uninstall(plain)
             sys.argv = argv0
-    return 0
+    for name in sorted(set(shapes) - refitted):
+        print(f"note: {name} was never re-calibrated (Naming 3b chose another effect, or no fit needed it): "
+              "its --refit-shapes did not run", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from dampersim.discrepancy import drive, naming
+from dampersim.discrepancy import naming
 
 from tests.discrepancy.benches import load_bench
 from tests.discrepancy.test_refit import NAME, _first_fit, namer  # noqa: F401  (namer: the fixture)
@@ -47,10 +47,26 @@ def test_the_traced_refit_returns_the_plain_one_and_logs_the_side_refits(namer, 
     # the side refit started from the given shape, so it is another fit, and its runs are real
     assert side["refit"]["cost"] != plain["cost"]
     assert len(namer.calls) > 2 * runs_plain
-    # the side refit's shape step is in its entry; the effect's failures are those of the plain runs
-    assert side["after_shape_step"]["cost"] <= side["refit"]["cost"]
-    assert namer.failures[NAME] == {}
-    json.dumps(events)  # every event is plain JSON
+    assert side["after_shape_step"] is not None  # the side refit's shape step is in its entry
+    json.dumps(events)  # every event serialises
+
+
+def test_a_side_refits_failed_points_are_not_recorded_against_the_effect(namer, events):  # noqa: F811
+    first = _first(namer)
+    runs = namer.runs
+
+    def failing_side(system, name, points=None):  # a run from the side shape fails at the first point
+        y, failed = runs(system, name, points)
+        if system.effects.pendulum_absorber.order == 2.1:
+            namer._record(name, {0: "side run failed"}, namer.points if points is None else points)
+        return y, failed
+
+    namer.runs = failing_side
+    naming.Namer.refit(namer, NAME, first)
+    before = dict(namer.failures.get(NAME, {}))
+    trace.install(events.append, {NAME: {"other": {"order": 2.1, "damping": 0.03}}})
+    naming.Namer.refit(namer, NAME, first)
+    assert before == {} and namer.failures[NAME] == before
 
 
 def test_a_side_refit_the_set_refuses_goes_to_its_event_and_leaves_the_fit_alone(namer, events):  # noqa: F811
@@ -83,6 +99,8 @@ def test_the_traced_evidence_logs_each_training_points_reduced_chi2(namer, event
     assert log_z == plain[0] and np.array_equal(cov, plain[1])
     (event,) = events
     assert list(event["point_reduced_chi2"]) == [p.id for p in namer.points]
+    per_point = namer.lik.point_chi2(fit["y"], namer.train, fit["nuisance"]) / (2 * len(namer.lik.orders))
+    assert list(event["point_reduced_chi2"].values()) == [float(c) for c in per_point]  # each to its own point
     # independently: the points' mean is the model's plain reduced chi^2 (equal point sizes);
     # the tolerance covers the summation order only
     mean = np.mean(list(event["point_reduced_chi2"].values()))
