@@ -52,10 +52,6 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 WRAPPED = ("fit_candidate", "evidence", "refit", "fit_shapes")
 
 
-def _floats(values) -> list:
-    return [float(v) for v in values]
-
-
 def install(write, refit_shapes: dict) -> dict:
     """Wrap Namer's screen-to-fit, evidence, re-calibration and shape steps so that each writes
     its event through ``write`` (a callable taking a dict). Returns the plain methods
@@ -66,7 +62,7 @@ def install(write, refit_shapes: dict) -> dict:
     def state(self, name, fit) -> dict | None:
         if fit is None:
             return None
-        return {"cost": float(fit["cost"]), "m": float(fit["m"]), "x": _floats(fit["x"]),
+        return {"cost": float(fit["cost"]), "m": float(fit["m"]), "x": [float(v) for v in fit["x"]],
                 "shape": {k: float(v) for k, v in self.shape_values(name, fit["system"]).items()}}
 
     def fit_candidate(self, name, screened):
@@ -165,18 +161,15 @@ def main(argv=None) -> int:
                  "(without any, bench_discrepancy.py would run its whole matrix)")
     argv0 = sys.argv
     with open(args.trace, "a", encoding="utf-8") as fh:
+        refitted = set()  # the effects re-calibrated: a given side shape of any other never ran
+
         def write(event):
+            if event["event"] == "refit":
+                refitted.add(event["name"])
             fh.write(json.dumps(event) + "\n")
             fh.flush()
 
-        refitted = set()
-
-        def write_noting(event):
-            if event["event"] == "refit":
-                refitted.add(event["name"])
-            write(event)
-
-        plain = install(write_noting, shapes)
+        plain = install(write, shapes)
         sys.argv = [os.path.join(HERE, "bench_discrepancy.py"), *rest]
         code = 0
         try:

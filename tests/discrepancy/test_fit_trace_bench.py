@@ -24,15 +24,8 @@ def events(monkeypatch):
     return []
 
 
-def _first(namer):
-    fit = _first_fit(namer, 0.0016)
-    fit["system"] = naming.with_effect(naming.calibrated_system(namer.starts["estimated"][0], fit["x"]), NAME,
-                                       {"inertia": 0.0016})
-    return fit
-
-
 def test_the_traced_refit_returns_the_plain_one_and_logs_the_side_refits(namer, events):  # noqa: F811
-    first = _first(namer)
+    first = _first_fit(namer, 0.0016)
     plain = naming.Namer.refit(namer, NAME, first)
     runs_plain = len(namer.calls)
     side_shape = {"order": 2.1, "damping": 0.03}
@@ -52,7 +45,7 @@ def test_the_traced_refit_returns_the_plain_one_and_logs_the_side_refits(namer, 
 
 
 def test_a_side_refits_failed_points_are_not_recorded_against_the_effect(namer, events):  # noqa: F811
-    first = _first(namer)
+    first = _first_fit(namer, 0.0016)
     runs = namer.runs
 
     def failing_side(system, name, points=None):  # a run from the side shape fails at the first point
@@ -70,7 +63,7 @@ def test_a_side_refits_failed_points_are_not_recorded_against_the_effect(namer, 
 
 
 def test_a_side_refit_the_set_refuses_goes_to_its_event_and_leaves_the_fit_alone(namer, events):  # noqa: F811
-    first = _first(namer)
+    first = _first_fit(namer, 0.0016)
     plain = naming.Namer.refit(namer, NAME, first)
     trace.install(events.append, {NAME: {"bad": {"order": -1.0}}})
     traced = naming.Namer.refit(namer, NAME, first)
@@ -80,7 +73,7 @@ def test_a_side_refit_the_set_refuses_goes_to_its_event_and_leaves_the_fit_alone
 
 
 def test_the_shape_step_is_traced_with_the_objective_before_it(namer, events):  # noqa: F811
-    fit = naming.Namer.refit(namer, NAME, _first(namer))
+    fit = naming.Namer.refit(namer, NAME, _first_fit(namer, 0.0016))
     before = fit["cost"]
     trace.install(events.append, {})
     out = naming.Namer.fit_shapes(namer, NAME, fit)
@@ -90,7 +83,7 @@ def test_the_shape_step_is_traced_with_the_objective_before_it(namer, events):  
 
 
 def test_the_traced_evidence_logs_each_training_points_reduced_chi2(namer, events):  # noqa: F811
-    first = _first(namer)
+    first = _first_fit(namer, 0.0016)
     fit = naming.Namer.refit(namer, NAME, first)
     fit.update({"effects": [NAME], "columns": [fit["column"]], "nuisance": namer.lik.profile(fit["y"], namer.train)[1]})
     plain = naming.Namer.evidence(namer, fit, [NAME])

@@ -74,7 +74,8 @@ def _first_fit(namer, inertia):
     x = np.log([1.6, 1.9, 1.7, 1.8, 0.6, 1.6])
     system = naming.with_effect(naming.calibrated_system(BASE, x), NAME, {"inertia": inertia})
     y = _toy(system)
-    return {"m": inertia, "x": x, "y": y, "cost": namer.cost(y, x, namer._magnitude_prior(NAME, inertia))}
+    return {"m": inertia, "x": x, "y": y, "cost": namer.cost(y, x, namer._magnitude_prior(NAME, inertia)),
+            "system": system}
 
 
 def test_the_refit_reaches_the_truth_from_the_estimate_in_the_counted_runs(namer, monkeypatch):
