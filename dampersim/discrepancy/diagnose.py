@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, fitting, model_terms, pickup, ramp_models, selection, shapes
+from dampersim.discrepancy import design, drive, fitting, intervals, model_terms, pickup, ramp_models, selection
 from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
@@ -421,7 +421,9 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         final = models[top]
         y_aug = y_cal.copy()
         y_aug[train], y_aug[held] = final["y"], final["yh"]
-        effects_out = _effects_of(top, final)
+        # intervals: the Laplace covariance's, widened where the training points disagree
+        jack = intervals.jackknife_variance(*namer.linearised(final), intervals.point_groups(len(train), len(drive.ORDERS)))
+        effects_out = intervals.effects_of(top, final, jack)
         effect = effects_out[0]["name"] if verdict == "missing_effect" else None
         eff_params = {}
         if effect:
@@ -480,7 +482,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
                     "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
-                    "recalibrated": recalibrated,
+                    "recalibrated": recalibrated, "interval_spread": intervals.spread(final, jack),
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_log_likelihood": ramp_ll,
@@ -507,40 +509,6 @@ def _learning_rate(namer, models, train) -> float:
     return selection.learning_rate(best[0], n, best[1])
 
 
-def _effects_of(label, fit) -> list:
-    """The ``effects`` entries of a fitted model: name, fitted parameters (magnitude and
-    shape parameters) and their 90 % intervals from the Laplace covariance."""
-    out = []
-    names = fit.get("effects", [])
-    cov = fit.get("cov")
-    n_cal = len(CALIBRATION)
-    for j, name in enumerate(names):
-        e = info(name)
-        m = fit["m"] if j == len(names) - 1 else fit.get("m_first", fit["m"])
-        sd = math.sqrt(max(float(cov[n_cal + j, n_cal + j]), 0.0)) if cov is not None else math.nan
-        params = {e.magnitude: m}
-        intervals = {e.magnitude: selection.interval90(math.log(m), sd)}
-        for q, v in _reported_shapes(name, fit, len(names)).items():
-            params[q] = v
-            if q in fit.get("shape_start", {}):  # a fitted shape; a discrete one the screen chose has none
-                i = n_cal + len(names) + list(fit["shape_start"]).index(q)
-                intervals[q] = selection.interval90(math.log(v), math.sqrt(max(float(cov[i, i]), 0.0)))
-        out.append({"name": name, "parameters": params, "intervals": intervals})
-    return out
-
-
-def _reported_shapes(name, fit, n_effects: int) -> dict:
-    """The shape values a single effect's model holds: its fitted shapes (where the shape step
-    left them, or where the fit started when the step was refused) and its discrete choices
-    (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`); none for a pair, whose second
-    effect keeps the shape of its own fit."""
-    if n_effects != 1:
-        return {}
-    eff = getattr(fit["system"].effects, name)
-    return {**fit.get("shape_start", {}), **fit.get("shapes", {}),
-            **{q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}}
-
-
 def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfitted) -> list:
     """One entry per candidate (and pair tried), most probable first."""
     rows = []
@@ -553,7 +521,7 @@ def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfi
                  "excluded": unfitted.get(name)}
         fails = dict(failures.get(name, {}))
         if fit is not None:
-            entry["parameters"] = {p: v for eff in _effects_of(name, fit) for p, v in eff["parameters"].items()}
+            entry["parameters"] = {p: v for eff in intervals.effects_of(name, fit) for p, v in eff["parameters"].items()}
             if fit["yh"] is not None:
                 entry["gap_held_out_nm"] = _rms(_resid(np.abs(fit["yh"]), meas[held]))
             else:

@@ -524,12 +524,18 @@ class Namer:
         standardised training residual, the Jacobian and prior precisions of the model's
         evidence columns, the parameters' offsets from their prior centres, the learning rate
         eta and the misfit's basis (:func:`~dampersim.discrepancy.unnamed.torsion_basis`)."""
-        names = fit["effects"]
-        jac, prec = self._evidence_columns(fit, names)
+        r, jac, prec, offset = self.linearised(fit)
+        return {"r_fit": r, "jac": jac, "prec": prec, "offset": offset, "eta": float(eta),
+                "basis": unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])}
+
+    def linearised(self, fit) -> tuple:
+        """(standardised training residual at the fit's nuisance, Jacobian and prior precisions
+        of the evidence's columns, the parameters' offsets from their prior centres) of a fitted
+        model: its objective linearised at the fit, as the evidence reads it."""
+        jac, prec = self._evidence_columns(fit, fit["effects"])
         with self.lik.using(fit["nuisance"]):
             r = self.lik.mvec(self.train) - self.lik.vec(fit["y"], self.train)
-        return {"r_fit": r, "jac": jac, "prec": prec, "offset": self._offset(fit, names), "eta": float(eta),
-                "basis": unnamed.torsion_basis(self.lik, fit["y"], self.train, fit["nuisance"])}
+        return r, jac, prec, self._offset(fit, fit["effects"])
 
     def _offset(self, fit, names) -> np.ndarray:
         """The fitted parameters minus their prior centres, in the evidence's column order:

@@ -122,6 +122,7 @@ def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     fit["nuisance"] = lik.profile(fit["y"], train)[1]
     fit["cov"] = fit["cov"].copy()
     fit["cov"][n_cal, n_cal] = 1.0 / curv if curv > 0 else var0
+    fit["sized_by_ramps"] = True  # its interval is the ramps' (intervals.effects_of)
     return True
 
 

@@ -190,17 +190,17 @@ def test_shapes_and_counts_the_set_refuses_are_not_run(namer):
 
 
 def test_a_single_effect_reports_its_shapes_and_its_count():
-    from dampersim.discrepancy import diagnose as dg
+    from dampersim.discrepancy import intervals
 
     n_cal = len(CALIBRATION)
     system = naming.with_effect(BASE, NAME, {"stiffness": 250.0, "clearance": 0.0707, "count": 3})
     cov = np.diag(np.r_[np.full(n_cal, 0.01), 0.04, 0.09, 0.01, 0.01])  # factors, stiffness, clearance, channels
     fit = {"effects": [NAME], "m": 250.0, "cov": cov, "system": system, "shape_start": {"clearance": 0.0707},
            "shapes": {}}  # the shape step refused: the clearance where the fit started
-    (entry,) = dg._effects_of(NAME, fit)
+    (entry,) = intervals.effects_of(NAME, fit)
     assert entry["parameters"] == {"stiffness": 250.0, "clearance": 0.0707, "count": 3}
     assert set(entry["intervals"]) == {"stiffness", "clearance"}  # the count is chosen, not fitted: no interval
     low, high = entry["intervals"]["clearance"]
     assert math.log(high / low) == pytest.approx(2 * 1.6448536 * 0.3, rel=1e-6)  # its own variance, 0.09
     fit["shapes"] = {"clearance": 0.066}  # the step moved it
-    assert dg._effects_of(NAME, fit)[0]["parameters"]["clearance"] == 0.066
+    assert intervals.effects_of(NAME, fit)[0]["parameters"]["clearance"] == 0.066

@@ -1,0 +1,130 @@
+"""The reported 90 % intervals: the Laplace covariance's, widened by a delete-one-point
+jackknife where the training points disagree (dampersim.discrepancy.intervals; no simulation)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dampersim.discrepancy import intervals, selection
+from dampersim.discrepancy.effects import with_effect
+from dampersim.discrepancy.fitting import CALIBRATION
+from dampersim.discrepancy.likelihood import Likelihood
+from dampersim.parameters import default_parameters
+
+N_POINTS, N_ORDERS = 8, 8  # the diagnosis's training points of a 12-point campaign, its orders
+
+
+def test_point_groups_follow_the_likelihoods_vector_layout():
+    """Each point's measured orders carry its own value, so the standardised vector shows
+    which point every row belongs to."""
+    n = 5
+    meas = np.repeat((np.arange(n) + 1.0)[:, None], N_ORDERS, axis=1) * (1 + 1j)
+    lik = Likelihood(meas, np.ones((n, N_ORDERS)), np.full(n, 200.0), np.arange(1.0, N_ORDERS + 1))
+    rows = list(range(n))
+    v = lik.mvec(rows)
+    np.testing.assert_array_equal(np.rint(v / v.min()).astype(int) - 1, intervals.point_groups(n, N_ORDERS))
+
+
+def _linear_problem(rng, n_par=3):
+    jac = rng.standard_normal((2 * N_POINTS * N_ORDERS, n_par))
+    prec = np.full(n_par, 1e-2)  # weak priors: the data set the parameters
+    return jac, prec, intervals.point_groups(N_POINTS, N_ORDERS)
+
+
+def test_each_leave_one_out_estimate_is_the_exact_minimiser_without_that_point():
+    """The jackknife's downdated normal equations against least squares solved afresh without
+    the point's rows (the priors as extra rows): the two routes agree to rounding."""
+    rng = np.random.default_rng(1)
+    jac, prec, groups = _linear_problem(rng)
+    r, offset = rng.standard_normal(len(jac)), rng.standard_normal(jac.shape[1])
+    est = []
+    for k in range(N_POINTS):
+        keep = groups != k
+        a = np.vstack([jac[keep], np.diag(np.sqrt(prec))])
+        b = np.concatenate([r[keep], -np.sqrt(prec) * offset])
+        est.append(np.linalg.lstsq(a, b, rcond=None)[0])
+    est = np.array(est)
+    expected = (N_POINTS - 1) / N_POINTS * np.sum((est - est.mean(axis=0)) ** 2, axis=0)
+    np.testing.assert_allclose(intervals.jackknife_variance(r, jac, prec, offset, groups), expected, rtol=1e-9)
+
+
+def test_fewer_than_two_points_leave_nothing_to_leave_out():
+    jac = np.ones((4, 2))
+    assert np.all(intervals.jackknife_variance(np.ones(4), jac, np.ones(2), np.zeros(2), np.zeros(4)) == 0.0)
+
+
+def _coverage(point_sd: float, trials: int = 400, seed: int = 7):
+    """Share of trials whose interval holds the truth (0) for the Laplace interval alone and
+    the reported one (the larger variance), and the mean ratio of the two variances, on a
+    linear model with unit noise plus, per point, a systematic pull along a random parameter
+    direction of spread ``point_sd`` (a misfit the model cannot express, different at each
+    point)."""
+    rng = np.random.default_rng(seed)
+    jac, prec, groups = _linear_problem(rng)
+    cov = selection.posterior_covariance(jac, prec)
+    lap_in = rep_in = 0
+    ratios = []
+    for _ in range(trials):
+        pull = jac @ (point_sd * rng.standard_normal((N_POINTS, jac.shape[1]))).T  # rows x points
+        r = rng.standard_normal(len(jac)) + pull[np.arange(len(jac)), groups]
+        est = cov @ (jac.T @ r)  # the fit; prior centre at the truth, 0
+        jv = intervals.jackknife_variance(r - jac @ est, jac, prec, est, groups)
+        lap, rep = cov[0, 0], max(cov[0, 0], jv[0])
+        lap_in += abs(est[0]) <= selection.Z90 * math.sqrt(lap)
+        rep_in += abs(est[0]) <= selection.Z90 * math.sqrt(rep)
+        ratios.append(jv[0] / lap)
+    return lap_in / trials, rep_in / trials, float(np.mean(ratios))
+
+
+def test_with_noise_alone_the_jackknife_agrees_with_the_laplace_variance():
+    """Noise as stated: the jackknife's variance averages near the Laplace one (0.8 to 1.25:
+    with 8 points each trial's jackknife variance scatters like chi^2 on about 7 degrees of
+    freedom, 400 trials average that to a few %), and the reported interval covers near 90 %
+    (400 trials: one binomial standard deviation is 1.5 %)."""
+    lap, rep, ratio = _coverage(0.0)
+    assert 0.8 <= ratio <= 1.25
+    assert lap >= 0.86 and rep >= 0.86
+
+
+def test_a_misfit_that_differs_between_points_widens_the_interval_to_cover_it():
+    """Per-point pulls that give the estimate four times the variance the noise gives it
+    (spread 0.5 per parameter, averaged over 8 points against the noise's 1/128): the Laplace
+    interval holds the truth in about half the trials (0.50 at this seed), the reported one in
+    at least 80 % (0.84; not 90 %: with 8 points the jackknife's variance is itself uncertain,
+    a Student t on about 7 degrees of freedom gives 86 % at the normal quantile)."""
+    lap, rep, ratio = _coverage(0.5)
+    assert lap < 0.6, lap
+    assert rep >= 0.8, rep
+    assert ratio > 3.0  # about 5 expected: (1/128 + 0.25/8) / (1/128)
+
+
+def _fit(cov_diag, **extra):
+    system = with_effect(default_parameters(), "pendulum_absorber", {"inertia": 0.002, "order": 2.0, "damping": 0.02})
+    fit = {"effects": ["pendulum_absorber"], "m": 0.002, "cov": np.diag(cov_diag), "system": system,
+           "shape_start": {"order": 2.0, "damping": 0.02}, "shapes": {}}
+    fit.update(extra)
+    return fit
+
+
+def _log_half_width(entry, par):
+    low, high = entry["intervals"][par]
+    return math.log(high / low) / (2 * selection.Z90)
+
+
+def test_each_interval_takes_the_larger_variance_and_a_ramp_sized_magnitude_keeps_its_own():
+    n_cal = len(CALIBRATION)
+    lap = np.r_[np.full(n_cal, 0.01), 0.0004, 0.0001, 0.04, 0.01, 0.01]  # factors, inertia, order, damping, channels
+    jack = np.r_[np.full(n_cal, 0.02), 0.0016, 0.00001, 0.09, 0.0, 0.0]
+    (entry,) = intervals.effects_of("pendulum_absorber", _fit(lap), jack)
+    assert _log_half_width(entry, "inertia") == pytest.approx(0.04)  # the jackknife's 0.0016
+    assert _log_half_width(entry, "order") == pytest.approx(0.01)  # the Laplace 0.0001
+    assert _log_half_width(entry, "damping") == pytest.approx(0.3)  # the jackknife's 0.09
+    (alone,) = intervals.effects_of("pendulum_absorber", _fit(lap))
+    assert _log_half_width(alone, "inertia") == pytest.approx(0.02)
+    (ramps,) = intervals.effects_of("pendulum_absorber", _fit(lap, sized_by_ramps=True), jack)
+    assert _log_half_width(ramps, "inertia") == pytest.approx(0.02)  # the ramps' variance, not the points'
+    assert _log_half_width(ramps, "damping") == pytest.approx(0.3)
+    spread = intervals.spread(_fit(lap), jack)
+    assert spread == {"pendulum_absorber": pytest.approx({"inertia": 2.0, "order": math.sqrt(0.1), "damping": 1.5})}
+    assert intervals.spread(_fit(lap), None) == {}
