@@ -158,14 +158,30 @@ def _interval(v):
     return None, None
 
 
+def _width_text(spread, name: str, par: str, magnitude) -> str:
+    """What set an interval's width, from ``likelihood.interval_spread`` (None: a diagnosis
+    from before it): the noise, the points' disagreement (the jackknife's standard deviation
+    over the Laplace one) or, for a magnitude the ramps sized, the ramps."""
+    if spread is None:
+        return DASH
+    ratio = _float(_dict(spread.get(name)).get(par))
+    if ratio is None:
+        return "the ramps" if par == magnitude and name in spread else DASH
+    return f"the points' spread, {number_text(ratio, 3)}× the noise's" if ratio > 1.0 else "the noise"
+
+
 def effect_rows(doc) -> list:
     """The effects of the most probable model, one row per fitted parameter: {"effect",
     "parameter", "unit", "value", "low", "high", "magnitude" (the parameter that sets the
-    effect's size), "value_text", "interval_text" ("880 – 990 N m", the 90 % interval)}.
-    Empty for the model without effects and without a model comparison."""
+    effect's size), "value_text", "interval_text" ("880 – 990 N m", the 90 % interval),
+    "width_text" (what set the interval's width: the noise, the points' spread or the ramps;
+    dampersim.discrepancy.intervals)}. Empty for the model without effects and without a
+    model comparison."""
     rows = []
     if not isinstance(doc, dict):
         return rows
+    spread = _dict(doc.get("likelihood")).get("interval_spread")
+    spread = spread if isinstance(spread, dict) else None
     for e in _list(doc.get("effects")):
         if not isinstance(e, dict):
             continue
@@ -185,6 +201,7 @@ def effect_rows(doc) -> list:
                 "magnitude": par == magnitude, "value_text": value_text,
                 "interval_text": DASH if low is None or high is None else
                 f"{number_text(low, 3)} – {number_text(high, 3, unit)}",
+                "width_text": DASH if low is None or high is None else _width_text(spread, name, par, magnitude),
             })
     return rows
 
@@ -318,7 +335,7 @@ def likelihood_text(doc) -> str:
 POSTERIOR_COLUMNS = [("label", "Model"), ("prior_text", "Prior"), ("probability_text", "Posterior probability"),
                      ("log_evidence_text", "Log evidence")]
 EFFECT_COLUMNS = [("effect", "Effect"), ("parameter", "Parameter"), ("value_text", "Fitted value"),
-                  ("interval_text", f"{INTERVAL_PCT} % interval")]
+                  ("interval_text", f"{INTERVAL_PCT} % interval"), ("width_text", "Width set by")]
 DETECTABILITY_COLUMNS = [("effect", "Effect"), ("parameter", "Magnitude parameter"), ("unit", "Unit"),
                          ("threshold_text", "Threshold"), ("meaning", "With this campaign")]
 RECOMMENDED_COLUMNS = [("kind", "Kind"), ("speed_text", "Speed [rpm]"), ("torque_text", "Mean torque [N m]"),

@@ -16,7 +16,8 @@ the noise, and then C = L + Q is the minimised objective). The last two terms ar
 factor: a parameter the data do not need costs evidence. Posterior probabilities follow
 from the evidence and the model priors of MODEL_PRIOR (stated in docs/discrepancy.md); 90 %
 intervals of a fitted parameter are its estimate +- 1.645 posterior standard deviations in
-log space (from A^-1).
+log space (from A^-1); the reported ones (:mod:`dampersim.discrepancy.intervals`) widen them
+where the training points disagree.
 """
 
 from __future__ import annotations

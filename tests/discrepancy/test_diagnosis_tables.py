@@ -82,6 +82,15 @@ def test_effects_of_the_most_probable_model_with_intervals_and_units():
     assert cap["value_text"] == "512 N m" and cap["interval_text"] == "480 – 546 N m"
     assert visc["unit"] == "N m s/rad" and not visc["magnitude"] and visc["interval_text"] == "0.5 – 1.1 N m s/rad"
     assert "clutch_slip" in T.effects_note(FULL) and "90 % intervals" in T.effects_note(FULL)
+    # what set each interval's width: not known for a diagnosis from before the jackknife
+    assert cap["width_text"] == "—" and visc["width_text"] == "—"
+    spread = {**FULL, "likelihood": {**FULL["likelihood"], "interval_spread": {"clutch_slip": {"viscous": 2.5}}}}
+    cap, visc = T.effect_rows(plain(spread))
+    assert cap["width_text"] == "the ramps"  # the magnitude left out: the ramps sized it
+    assert visc["width_text"] == "the points' spread, 2.5× the noise's"
+    spread["likelihood"]["interval_spread"]["clutch_slip"] = {"capacity": 0.8, "viscous": 1.0}
+    assert [r["width_text"] for r in T.effect_rows(plain(spread))] == ["the noise", "the noise"]
+    assert ("width_text", "Width set by") in T.EFFECT_COLUMNS
     # the most probable model is "none": no effect, said so
     none = {**FULL, "posterior": {"none": 0.9, "clutch_slip": 0.1}, "effects": []}
     assert T.effect_rows(none) == [] and "calibrated model alone" in T.effects_note(none)
@@ -158,7 +167,8 @@ def test_malformed_values_show_a_dash_never_raise():
                        {"name": "turbine_drag", "parameters": None, "intervals": {"coefficient": [1.0, None]}}],
            "detectability": {"not_an_effect": 3.0, "turbine_drag": "x"},
            "recommended_points": [None, {"kind": None, "speed_rpm": "fast"}], "outliers": "p1",
-           "likelihood": {"nuisance": None, "log_evidence": [], "reduced_chi2_train": 2.0}}
+           "likelihood": {"nuisance": None, "log_evidence": [], "reduced_chi2_train": 2.0,
+                          "interval_spread": {"turbine_drag": "x", "not_an_effect": {"a": "y"}}}}
     post = T.posterior_rows(bad)
     assert post[0]["model"] == "clutch_slip" and post[0]["most_probable"]
     assert post[0]["prior_text"] == "—" and post[0]["log_evidence_text"] == "—"
@@ -166,6 +176,7 @@ def test_malformed_values_show_a_dash_never_raise():
     eff = T.effect_rows(bad)
     assert [(r["effect"], r["parameter"], r["value_text"], r["interval_text"]) for r in eff] == [
         ("not_an_effect", "a", "text", "—"), ("turbine_drag", "coefficient", "—", "—")]
+    assert [r["width_text"] for r in eff] == ["—", "—"]
     det = {r["effect"]: r for r in T.detectability_rows(bad)}
     assert det["turbine_drag"]["meaning"] == "not detectable with this campaign"
     assert det["not_an_effect"]["meaning"] == "threshold 3" and det["not_an_effect"]["bound"] is None
