@@ -43,15 +43,18 @@ def jackknife_variance(r, jac, prec, offset, groups) -> np.ndarray:
     the group (training point) of every row. The objective is |r - J d|^2 / 2 + (offset +
     d)' P (offset + d) / 2; each estimate is its minimiser without one group's rows, so the
     fit's distance from the full minimiser cancels in the spread. Fewer than two groups give
-    zeros (nothing to leave out)."""
+    zeros (nothing to leave out); inputs that are not all finite give NaN (no jackknife: the
+    intervals keep the Laplace variance)."""
     r, jac = np.asarray(r, dtype=float), np.asarray(jac, dtype=float)
-    p = np.asarray(prec, dtype=float)
+    p, offset = np.asarray(prec, dtype=float), np.asarray(offset, dtype=float)
     groups = np.asarray(groups)
     labels = np.unique(groups)
+    if not all(np.all(np.isfinite(a)) for a in (r, jac, p, offset)):
+        return np.full(jac.shape[1], np.nan)
     if len(labels) < 2:
         return np.zeros(jac.shape[1])
     h_all = jac.T @ jac + np.diag(p)
-    g_all = jac.T @ r - p * np.asarray(offset, dtype=float)
+    g_all = jac.T @ r - p * offset
     steps = []
     for k in labels:
         jk, rk = jac[groups == k], r[groups == k]
@@ -76,7 +79,9 @@ def effects_of(label, fit, jack_var=None) -> list:
         if cov is None:
             return math.nan
         v = max(float(cov[i, i]), 0.0)
-        return math.sqrt(v if jack_var is None or own else max(v, float(jack_var[i])))
+        if jack_var is None or own or not math.isfinite(float(jack_var[i])):
+            return math.sqrt(v)
+        return math.sqrt(max(v, float(jack_var[i])))
 
     for j, name in enumerate(names):
         e = info(name)
@@ -93,8 +98,9 @@ def effects_of(label, fit, jack_var=None) -> list:
 
 def spread(fit, jack_var) -> dict:
     """{effect: {parameter: jackknife / Laplace standard deviation}} of a fitted model's
-    interval parameters: above 1 where the points' disagreement widened the interval (a
-    magnitude the ramps sized is left out: its interval is the ramps')."""
+    interval parameters: above 1 where the points' disagreement widened the interval, None
+    where there was no jackknife (a magnitude the ramps sized is left out: its interval is
+    the ramps')."""
     cov, out = fit.get("cov"), {}
     if cov is None or jack_var is None:
         return out
@@ -103,8 +109,8 @@ def spread(fit, jack_var) -> dict:
         idx = {} if fit.get("sized_by_ramps") else {info(name).magnitude: n_cal + j}  # the ramps' variance
         if len(names) == 1:
             idx.update({q: n_cal + 1 + i for i, q in enumerate(fit.get("shape_start", {}))})
-        out[name] = {q: (math.sqrt(max(float(jack_var[i]), 0.0) / float(cov[i, i])) if cov[i, i] > 0 else None)
-                     for q, i in idx.items()}
+        out[name] = {q: (math.sqrt(max(float(jack_var[i]), 0.0) / float(cov[i, i]))
+                         if cov[i, i] > 0 and math.isfinite(float(jack_var[i])) else None) for q, i in idx.items()}
     return out
 
 

@@ -49,9 +49,11 @@ def test_each_leave_one_out_estimate_is_the_exact_minimiser_without_that_point()
     np.testing.assert_allclose(intervals.jackknife_variance(r, jac, prec, offset, groups), expected, rtol=1e-9)
 
 
-def test_fewer_than_two_points_leave_nothing_to_leave_out():
+def test_fewer_than_two_points_leave_nothing_to_leave_out_and_a_failed_input_gives_no_jackknife():
     jac = np.ones((4, 2))
     assert np.all(intervals.jackknife_variance(np.ones(4), jac, np.ones(2), np.zeros(2), np.zeros(4)) == 0.0)
+    r = np.array([1.0, np.nan, 0.0, 0.0])
+    assert np.all(np.isnan(intervals.jackknife_variance(r, jac, np.ones(2), np.zeros(2), [0, 0, 1, 1])))
 
 
 def _coverage(point_sd: float, trials: int = 400, seed: int = 7):
@@ -125,6 +127,10 @@ def test_each_interval_takes_the_larger_variance_and_a_ramp_sized_magnitude_keep
     (ramps,) = intervals.effects_of("pendulum_absorber", _fit(lap, sized_by_ramps=True), jack)
     assert _log_half_width(ramps, "inertia") == pytest.approx(0.02)  # the ramps' variance, not the points'
     assert _log_half_width(ramps, "damping") == pytest.approx(0.3)
+    nan = np.full(len(lap), np.nan)  # no jackknife: the Laplace intervals, and no ratio
+    assert intervals.effects_of("pendulum_absorber", _fit(lap), nan) == [alone]
+    assert intervals.spread(_fit(lap), nan) == {"pendulum_absorber": dict.fromkeys(["inertia", "order", "damping"])}
     spread = intervals.spread(_fit(lap), jack)
     assert spread == {"pendulum_absorber": pytest.approx({"inertia": 2.0, "order": math.sqrt(0.1), "damping": 1.5})}
+    assert set(intervals.spread(_fit(lap, sized_by_ramps=True), jack)["pendulum_absorber"]) == {"order", "damping"}
     assert intervals.spread(_fit(lap), None) == {}
