@@ -422,7 +422,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         y_aug = y_cal.copy()
         y_aug[train], y_aug[held] = final["y"], final["yh"]
         # intervals: the Laplace covariance's, widened where the training points disagree
-        jack = intervals.jackknife_variance(*namer.linearised(final), intervals.point_groups(len(train), len(drive.ORDERS)))
+        groups = intervals.point_groups(len(train), len(drive.ORDERS))
+        jack = intervals.jackknife_variance(*namer.linearised(final), groups)
         effects_out = intervals.effects_of(top, final, jack)
         effect = effects_out[0]["name"] if verdict == "missing_effect" else None
         eff_params = {}
@@ -521,7 +522,7 @@ def _ranking(cands, models, screen, post, chi, failures, held, meas, log_z, unfi
                  "excluded": unfitted.get(name)}
         fails = dict(failures.get(name, {}))
         if fit is not None:
-            entry["parameters"] = {p: v for eff in intervals.effects_of(name, fit) for p, v in eff["parameters"].items()}
+            entry["parameters"] = {p: v for e in intervals.effects_of(name, fit) for p, v in e["parameters"].items()}
             if fit["yh"] is not None:
                 entry["gap_held_out_nm"] = _rms(_resid(np.abs(fit["yh"]), meas[held]))
             else:

@@ -91,7 +91,8 @@ def effects_of(label, fit, jack_var=None) -> list:
         for q, v in reported_shapes(name, fit, len(names)).items():
             params[q] = v
             if q in fit.get("shape_start", {}):  # a fitted shape; a discrete one the screen chose has none
-                intervals[q] = selection.interval90(math.log(v), sd(n_cal + len(names) + list(fit["shape_start"]).index(q)))
+                i = n_cal + len(names) + list(fit["shape_start"]).index(q)
+                intervals[q] = selection.interval90(math.log(v), sd(i))
         out.append({"name": name, "parameters": params, "intervals": intervals})
     return out
 
