@@ -423,7 +423,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         y_aug[train], y_aug[held] = final["y"], final["yh"]
         # intervals: the Laplace covariance's, widened where the training points disagree
         groups = intervals.point_groups(len(train), len(drive.ORDERS))
-        jack = intervals.jackknife_variance(*namer.linearised(final), groups)
+        jack, jack_noise = intervals.jackknife(*namer.linearised(final), groups, eta)
         effects_out = intervals.effects_of(top, final, jack)
         effect = effects_out[0]["name"] if verdict == "missing_effect" else None
         eff_params = {}
@@ -484,6 +484,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
                     "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
                     "recalibrated": recalibrated, "interval_spread": intervals.spread(final, jack),
+                    "interval_spread_noise": intervals.spread(final, jack_noise),
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_log_likelihood": ramp_ll,

@@ -158,30 +158,40 @@ def _interval(v):
     return None, None
 
 
-def _width_text(spread, name: str, par: str, magnitude) -> str:
-    """What set an interval's width, from ``likelihood.interval_spread`` (None: a diagnosis
-    from before it): the noise, the points' disagreement (the jackknife's standard deviation
-    over the Laplace one) or, for a magnitude the ramps sized, the ramps."""
-    if spread is None:
+def _width_text(spread, noise, name: str, par: str, magnitude) -> str:
+    """What set an interval's width, from ``likelihood.interval_spread`` and
+    ``interval_spread_noise`` (None: a diagnosis from before them): the Laplace covariance,
+    the points' jackknife (its standard deviation over the Laplace one, and what it would be
+    with the noise alone: near that figure, few points inform the parameter; far above it,
+    the points disagree) or, for a magnitude the ramps sized, the ramps."""
+    entry = spread.get(name) if spread is not None else None
+    if not isinstance(entry, dict):
         return DASH
-    ratio = _float(_dict(spread.get(name)).get(par))
+    if par not in entry:
+        return "the ramps" if par == magnitude else DASH
+    ratio = _float(entry[par])
     if ratio is None:
-        return "the ramps" if par == magnitude and name in spread else DASH
-    return f"the points' spread, {number_text(ratio, 3)}× the noise's" if ratio > 1.0 else "the noise"
+        return DASH
+    if ratio <= 1.0:
+        return "the Laplace covariance"
+    alone = _float(_dict(_dict(noise).get(name)).get(par))
+    return (f"the points' jackknife, {number_text(ratio, 3)}× the Laplace width" +
+            ("" if alone is None else f" ({number_text(alone, 3)}× with the noise alone)"))
 
 
 def effect_rows(doc) -> list:
     """The effects of the most probable model, one row per fitted parameter: {"effect",
     "parameter", "unit", "value", "low", "high", "magnitude" (the parameter that sets the
     effect's size), "value_text", "interval_text" ("880 – 990 N m", the 90 % interval),
-    "width_text" (what set the interval's width: the noise, the points' spread or the ramps;
-    dampersim.discrepancy.intervals)}. Empty for the model without effects and without a
+    "width_text" (what set the interval's width: the Laplace covariance, the points' jackknife
+    or the ramps; dampersim.discrepancy.intervals)}. Empty for the model without effects and without a
     model comparison."""
     rows = []
     if not isinstance(doc, dict):
         return rows
-    spread = _dict(doc.get("likelihood")).get("interval_spread")
-    spread = spread if isinstance(spread, dict) else None
+    lk = _dict(doc.get("likelihood"))
+    spread = lk.get("interval_spread") if isinstance(lk.get("interval_spread"), dict) else None
+    noise = lk.get("interval_spread_noise")
     for e in _list(doc.get("effects")):
         if not isinstance(e, dict):
             continue
@@ -201,7 +211,7 @@ def effect_rows(doc) -> list:
                 "magnitude": par == magnitude, "value_text": value_text,
                 "interval_text": DASH if low is None or high is None else
                 f"{number_text(low, 3)} – {number_text(high, 3, unit)}",
-                "width_text": DASH if low is None or high is None else _width_text(spread, name, par, magnitude),
+                "width_text": DASH if low is None or high is None else _width_text(spread, noise, name, par, magnitude),
             })
     return rows
 

@@ -84,12 +84,21 @@ def test_effects_of_the_most_probable_model_with_intervals_and_units():
     assert "clutch_slip" in T.effects_note(FULL) and "90 % intervals" in T.effects_note(FULL)
     # what set each interval's width: not known for a diagnosis from before the jackknife
     assert cap["width_text"] == "—" and visc["width_text"] == "—"
-    spread = {**FULL, "likelihood": {**FULL["likelihood"], "interval_spread": {"clutch_slip": {"viscous": 2.5}}}}
-    cap, visc = T.effect_rows(plain(spread))
+    lk = {**FULL["likelihood"], "interval_spread": {"clutch_slip": {"viscous": 2.5}},
+          "interval_spread_noise": {"clutch_slip": {"viscous": 2.4}}}
+    cap, visc = T.effect_rows(plain({**FULL, "likelihood": lk}))
     assert cap["width_text"] == "the ramps"  # the magnitude left out: the ramps sized it
-    assert visc["width_text"] == "the points' spread, 2.5× the noise's"
-    spread["likelihood"]["interval_spread"]["clutch_slip"] = {"capacity": 0.8, "viscous": 1.0}
-    assert [r["width_text"] for r in T.effect_rows(plain(spread))] == ["the noise", "the noise"]
+    assert visc["width_text"] == "the points' jackknife, 2.5× the Laplace width (2.4× with the noise alone)"
+    lk["interval_spread"]["clutch_slip"] = {"capacity": 0.8, "viscous": 1.0}
+    assert [r["width_text"] for r in T.effect_rows(plain({**FULL, "likelihood": lk}))] == [
+        "the Laplace covariance", "the Laplace covariance"]
+    # no jackknife (a null ratio), a malformed entry: a dash, never "the ramps"
+    lk["interval_spread"]["clutch_slip"] = {"capacity": None, "viscous": 3.0}
+    del lk["interval_spread_noise"]
+    cap, visc = T.effect_rows(plain({**FULL, "likelihood": lk}))
+    assert cap["width_text"] == "—" and visc["width_text"] == "the points' jackknife, 3× the Laplace width"
+    lk["interval_spread"]["clutch_slip"] = "x"
+    assert {r["width_text"] for r in T.effect_rows(plain({**FULL, "likelihood": lk}))} == {"—"}
     assert ("width_text", "Width set by") in T.EFFECT_COLUMNS
     # the most probable model is "none": no effect, said so
     none = {**FULL, "posterior": {"none": 0.9, "clutch_slip": 0.1}, "effects": []}
