@@ -19,7 +19,7 @@ OUTPUTS = [Output(cid, "children") for cid in CARD_IDS.values()]
 def cards():
     """The cards of the tables, empty until a diagnosis is shown."""
     return [W.card(title, html.Div(html.P("No diagnosis shown yet.", className="hint"), id=CARD_IDS[tid]),
-                   wide=tid in ("posterior", "next-points"))
+                   wide=tid in ("posterior", "effects", "next-points"))  # effects: five columns
             for tid, (title, _columns, _hl) in TABLES.items()]
 
 
