@@ -7,11 +7,12 @@ browser), drive (running the model on measured input), tracking (order coefficie
 points on the low-passed measured input speed), effects (the library of candidate effects),
 likelihood (complex order residuals, their uncertainties, channel nuisance, robust loss),
 fitting (calibration arithmetic), selection (Laplace evidence, posterior, detection
-thresholds), intervals (the reported 90 % intervals, widened where the points disagree), naming
-(screen, fits, evidence), shapes (the shape parameters screened, fitted and chosen, and their
-priors), detect (an effect's detection threshold for the campaign), ramps (windup curves as
-predictions), design (next test points), outcome (the result record and its sentence), diagnose
-(the workflow itself), report and report_tables (a diagnosis as a document, its summary rows
-and tables), synth, daq and truths (synthetic campaigns with hidden effects, DAQ corruption and
-benchmark truths, for testing the workflow) and benchmark (the benchmark's figures).
+thresholds), intervals (the reported 90 % intervals, widened where leaving out a point moves a
+parameter further), naming (screen, fits, evidence), shapes (the shape parameters screened,
+fitted and chosen, and their priors), detect (an effect's detection threshold for the
+campaign), ramps (windup curves as predictions), design (next test points), outcome (the result
+record and its sentence), diagnose (the workflow itself), report and report_tables (a diagnosis
+as a document, its summary rows and tables), synth, daq and truths (synthetic campaigns with
+hidden effects, DAQ corruption and benchmark truths, for testing the workflow) and benchmark
+(the benchmark's figures).
 """

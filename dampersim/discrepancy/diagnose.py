@@ -421,7 +421,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         final = models[top]
         y_aug = y_cal.copy()
         y_aug[train], y_aug[held] = final["y"], final["yh"]
-        # intervals: the Laplace covariance's, widened where the training points disagree
+        # intervals: the Laplace covariance's, widened where leaving out a training point moves a parameter further
         groups = intervals.point_groups(len(train), len(drive.ORDERS))
         jack, jack_noise = intervals.jackknife(*namer.linearised(final), groups, eta)
         effects_out = intervals.effects_of(top, final, jack)

@@ -21,8 +21,9 @@ it is what keeps such an interval near its 90 %, where the jackknife's excess ov
 noise-alone expectation falls to about 70 %, tests/discrepancy/test_intervals.py); the
 diagnosis reports beside each ratio what the jackknife would give with the noise alone
 (:func:`jackknife`'s expectation), so the two causes can be told apart. With 8 training
-points the jackknife's variance is itself uncertain (about 7 degrees of freedom): an
-interval it sets holds about 85 % rather than 90 %.
+points the jackknife's variance is itself uncertain (about 7 degrees of freedom when every
+point informs the parameter alike, fewer when one point dominates): an interval it sets
+for an evenly informed parameter holds about 85 % rather than 90 %.
 """
 
 from __future__ import annotations

@@ -161,9 +161,10 @@ def _interval(v):
 def _width_text(spread, noise, name: str, par: str, magnitude) -> str:
     """What set an interval's width, from ``likelihood.interval_spread`` and
     ``interval_spread_noise`` (None: a diagnosis from before them): the Laplace covariance,
-    the points' jackknife (its standard deviation over the Laplace one, and what it would be
-    with the noise alone: near that figure, few points inform the parameter; far above it,
-    the points disagree) or, for a magnitude the ramps sized, the ramps."""
+    the points' jackknife (its standard deviation over the Laplace one, and the root of its
+    expected variance with the noise alone over the Laplace one: a ratio well above that
+    figure says the points disagree, a figure well above 1 that few points inform the
+    parameter) or, for a magnitude the ramps sized, the ramps."""
     entry = spread.get(name) if spread is not None else None
     if not isinstance(entry, dict):
         return DASH

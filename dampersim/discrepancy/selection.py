@@ -17,7 +17,7 @@ factor: a parameter the data do not need costs evidence. Posterior probabilities
 from the evidence and the model priors of MODEL_PRIOR (stated in docs/discrepancy.md); 90 %
 intervals of a fitted parameter are its estimate +- 1.645 posterior standard deviations in
 log space (from A^-1); the reported ones (:mod:`dampersim.discrepancy.intervals`) widen them
-where the training points disagree.
+where leaving out a training point moves a parameter further.
 """
 
 from __future__ import annotations
