@@ -52,8 +52,10 @@ def jackknife(r, jac, prec, offset, groups, eta: float = 1.0) -> tuple:
     is. A variance well above its expectation says the points disagree; an expectation well
     above the Laplace variance says few points inform the parameter (leverage).
 
-    r: standardised training residual at the fit (measured minus model); jac: its Jacobian
-    with respect to the parameters (rows x parameters, d model / d parameter); prec: the
+    r: standardised training residual at the fit (measured minus model, dimensionless); jac:
+    its Jacobian with respect to the parameters (rows x parameters, d model / d parameter;
+    the evidence's parameters: log calibration factors, log magnitudes and shapes, log
+    output gain and output delay in s, so each variance is in their squared units); prec: the
     parameters' prior precisions; offset: the parameters minus their prior centres; groups:
     the group (training point) of every row; eta: the likelihood's learning rate
     (:func:`~dampersim.discrepancy.selection.learning_rate`). The objective is |r - J d|^2 / 2
@@ -93,6 +95,19 @@ def jackknife(r, jac, prec, offset, groups, eta: float = 1.0) -> tuple:
     return variance, expected
 
 
+def columns(fit) -> dict:
+    """{effect: {parameter: its column in the evidence's order}} for the parameters of a
+    fitted model that get an interval: each effect's magnitude (calibration factors first,
+    then the magnitudes) and, for a single effect, its fitted shapes after them."""
+    names, n_cal = fit.get("effects", []), len(CALIBRATION)
+    out = {}
+    for j, name in enumerate(names):
+        out[name] = {info(name).magnitude: n_cal + j}
+        if len(names) == 1:
+            out[name].update({q: n_cal + 1 + i for i, q in enumerate(fit.get("shape_start", {}))})
+    return out
+
+
 def effects_of(label, fit, jack_var=None) -> list:
     """The ``effects`` entries of a fitted model: name, fitted parameters (magnitude and
     shape parameters) and their 90 % intervals in log space, from the larger of the Laplace
@@ -102,7 +117,6 @@ def effects_of(label, fit, jack_var=None) -> list:
     out = []
     names = fit.get("effects", [])
     cov = fit.get("cov")
-    n_cal = len(CALIBRATION)
 
     def sd(i, own=False):
         if cov is None:
@@ -111,16 +125,16 @@ def effects_of(label, fit, jack_var=None) -> list:
         j = math.nan if jack_var is None or own else float(jack_var[i])
         return math.sqrt(max(v, j) if math.isfinite(j) else v)
 
-    for j, name in enumerate(names):
+    for (j, name), cols in zip(enumerate(names), columns(fit).values()):
         e = info(name)
         m = fit["m"] if j == len(names) - 1 else fit.get("m_first", fit["m"])
         params = {e.magnitude: m}
-        intervals = {e.magnitude: selection.interval90(math.log(m), sd(n_cal + j, fit.get("sized_by_ramps", False)))}
+        own = fit.get("sized_by_ramps", False)
+        intervals = {e.magnitude: selection.interval90(math.log(m), sd(cols[e.magnitude], own))}
         for q, v in reported_shapes(name, fit, len(names)).items():
             params[q] = v
-            if q in fit.get("shape_start", {}):  # a fitted shape; a discrete one the screen chose has none
-                i = n_cal + len(names) + list(fit["shape_start"]).index(q)
-                intervals[q] = selection.interval90(math.log(v), sd(i))
+            if q in cols:  # a fitted shape; a discrete one the screen chose has none
+                intervals[q] = selection.interval90(math.log(v), sd(cols[q]))
         out.append({"name": name, "parameters": params, "intervals": intervals})
     return out
 
@@ -133,13 +147,11 @@ def spread(fit, variance) -> dict:
     cov, out = fit.get("cov"), {}
     if cov is None or variance is None:
         return out
-    names, n_cal = fit.get("effects", []), len(CALIBRATION)
-    for j, name in enumerate(names):
-        idx = {} if fit.get("sized_by_ramps") else {info(name).magnitude: n_cal + j}
-        if len(names) == 1:
-            idx.update({q: n_cal + 1 + i for i, q in enumerate(fit.get("shape_start", {}))})
+    for name, cols in columns(fit).items():
+        if fit.get("sized_by_ramps"):
+            cols.pop(info(name).magnitude)
         out[name] = {q: (math.sqrt(max(float(variance[i]), 0.0) / float(cov[i, i]))
-                         if cov[i, i] > 0 and math.isfinite(float(variance[i])) else None) for q, i in idx.items()}
+                         if cov[i, i] > 0 and math.isfinite(float(variance[i])) else None) for q, i in cols.items()}
     return out
 
 
@@ -155,4 +167,4 @@ def reported_shapes(name, fit, n_effects: int) -> dict:
             **{q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}}
 
 
-__all__ = ["point_groups", "jackknife", "effects_of", "spread", "reported_shapes"]
+__all__ = ["point_groups", "jackknife", "columns", "effects_of", "spread", "reported_shapes"]

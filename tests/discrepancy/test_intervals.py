@@ -194,3 +194,23 @@ def test_each_interval_takes_the_larger_variance_and_a_ramp_sized_magnitude_keep
     assert spread == {"pendulum_absorber": pytest.approx({"inertia": 2.0, "order": math.sqrt(0.1), "damping": 1.5})}
     assert set(intervals.spread(_fit(lap, sized_by_ramps=True), jack)["pendulum_absorber"]) == {"order", "damping"}
     assert intervals.spread(_fit(lap), None) == {}
+
+
+def test_a_pairs_magnitudes_read_their_own_columns():
+    """A pair carries its two magnitudes after the calibration factors and no shape columns:
+    each magnitude's interval reads its own variance, the larger of the two sources."""
+    n_cal = len(CALIBRATION)
+    system = with_effect(with_effect(default_parameters(), "turbine_drag", {"coefficient": 3.0}),
+                         "pendulum_absorber", {"inertia": 0.002})
+    lap = np.r_[np.full(n_cal, 0.01), 0.0004, 0.0009, 0.01, 0.01]  # factors, drag, inertia, channels
+    jack = np.r_[np.full(n_cal, 0.0), 0.0016, 0.0001, 0.0, 0.0]
+    fit = {"effects": ["turbine_drag", "pendulum_absorber"], "m_first": 3.0, "m": 0.002, "cov": np.diag(lap),
+           "system": system}
+    drag, absorber = intervals.effects_of("turbine_drag+pendulum_absorber", fit, jack)
+    assert drag["parameters"] == {"coefficient": 3.0} and absorber["parameters"] == {"inertia": 0.002}
+    assert _log_half_width(drag, "coefficient") == pytest.approx(0.04)  # the jackknife's 0.0016
+    assert _log_half_width(absorber, "inertia") == pytest.approx(0.03)  # the Laplace 0.0009
+    spread = intervals.spread(fit, jack)
+    assert set(spread) == {"turbine_drag", "pendulum_absorber"}
+    assert spread["turbine_drag"] == pytest.approx({"coefficient": 2.0})
+    assert spread["pendulum_absorber"] == pytest.approx({"inertia": 1 / 3})
