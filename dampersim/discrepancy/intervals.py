@@ -87,11 +87,11 @@ def jackknife(r, jac, prec, offset, groups, eta: float = 1.0) -> tuple:
     steps = maps @ r + pulls
     n = len(labels)
 
-    def spread(a):
+    def scatter(a):  # the jackknife's variance over the first axis (the left-out groups)
         return (n - 1) / n * np.sum((a - a.mean(axis=0)) ** 2, axis=0)
 
-    variance = spread(steps)
-    expected = np.sum(spread(maps), axis=1) / eta + spread(pulls)
+    variance = scatter(steps)
+    expected = np.sum(scatter(maps), axis=1) / eta + scatter(pulls)
     return variance, expected
 
 
@@ -115,7 +115,7 @@ def effects_of(label, fit, jack_var=None) -> list:
     parameter order; None or NaN: the Laplace variance alone). A magnitude the ramps sized
     (``fit["sized_by_ramps"]``) keeps the ramps' variance: the torsional points did not set it."""
     out = []
-    names = fit.get("effects", [])
+    names, cols_of = fit.get("effects", []), columns(fit)
     cov = fit.get("cov")
 
     def sd(i, own=False):
@@ -125,8 +125,8 @@ def effects_of(label, fit, jack_var=None) -> list:
         j = math.nan if jack_var is None or own else float(jack_var[i])
         return math.sqrt(max(v, j) if math.isfinite(j) else v)
 
-    for (j, name), cols in zip(enumerate(names), columns(fit).values()):
-        e = info(name)
+    for j, name in enumerate(names):
+        e, cols = info(name), cols_of[name]
         m = fit["m"] if j == len(names) - 1 else fit.get("m_first", fit["m"])
         params = {e.magnitude: m}
         own = fit.get("sized_by_ramps", False)
