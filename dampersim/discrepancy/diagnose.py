@@ -34,8 +34,8 @@ from dampersim.discrepancy.likelihood import (Likelihood, cell_sigma, measured_c
                                               residual_half_sigma, split_half_sigma)
 from dampersim.discrepancy.naming import Namer
 from dampersim.discrepancy.outcome import (INSUFFICIENT, MIN_SPEEDS, MIN_TORSIONAL_POINTS, SAME_SPEED_SHARE,
-                                           Diagnosis, _not_diagnosed, _verdict_message, decide, locate, shortfall,
-                                           speeds_of)
+                                           Diagnosis, _not_diagnosed, _verdict_message, decide, locate,
+                                           recalibration_trigger, shortfall, speeds_of)
 from dampersim.discrepancy.tracking import point_orders
 from dampersim.errors import InputError
 from dampersim.parameters import default_parameters
@@ -300,15 +300,20 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["columns"] = [fit["column"], *fit.get("shape_columns", [])]
             finish(name, fit, [name])
         lead = max((n for n in shortlisted if n in models), key=lambda n: models[n]["log_z"], default=None)
-        recalibrated = None  # {effect, adopted} when the leading effect was fitted again with the calibration
-        if lead is not None and lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]) > \
-                noise_level(2 * len(train) * len(drive.ORDERS)):
-            # the leading effect leaves the training misfit above the noise: the calibration without
-            # it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md, Naming, 3b)
+        recalibrated = None  # {effect, adopted, trigger} when the leading effect was fitted again with the calibration
+        trigger = None if lead is None else recalibration_trigger(
+            lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]),
+            noise_level(2 * len(train) * len(drive.ORDERS)),
+            None if models[lead]["yh"] is None else lik.robust_reduced_chi2(models[lead]["yh"], held,
+                                                                             models[lead]["nuisance"]), level)
+        if trigger is not None:
+            # the leading effect leaves the training or the held-out misfit above the noise: the calibration
+            # without it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md,
+            # Naming, 3b)
             report(0.76, f"name: re-calibrating with {lead}")
             first_fit, first_failures = models[lead], dict(failures.get(lead, {}))
             refit = namer.fit_shapes(lead, namer.refit(lead, first_fit))
-            recalibrated = {"effect": lead, "adopted": False}
+            recalibrated = {"effect": lead, "adopted": False, "trigger": trigger}
             if refit is not None and refit["cost"] < first_fit["cost"]:
                 refit["effects"], refit["columns"] = [lead], [refit["column"], *refit.get("shape_columns", [])]
                 finish(lead, refit, [lead])

@@ -154,6 +154,21 @@ def decide(top: str, posterior: float, chi_top: float, chi_none: float, level: f
     return "unexplained"
 
 
+def recalibration_trigger(chi_train: float, train_level: float, chi_held, held_level: float) -> str | None:
+    """Why the leading effect is fitted again together with the calibration (docs/discrepancy.md,
+    Naming 3b), from its robust reduced chi^2 on the training points ``chi_train`` and on the
+    held-out points ``chi_held`` (None when its held-out run failed) against each set's noise
+    level: "training" when it leaves the training points above theirs; "held_out" when it fits
+    them but leaves the held-out points above theirs (the calibration without the effect may
+    have taken the effect up on the training points at factors that do not carry over to the
+    held-out ones: a spring preload read as more friction); None otherwise."""
+    if chi_train > train_level:
+        return "training"
+    if chi_held is not None and chi_held > held_level:
+        return "held_out"
+    return None
+
+
 def not_adopted_reason(verdict: str, top: str, posterior: float, chi_top, chi_none, level) -> str | None:
     """Why the most probable model ``top``, an effect or pair, was not adopted (see
     :func:`decide`), in one clause; None when ``top`` is "none", the effect was adopted,
@@ -241,5 +256,5 @@ def locate(diag: Diagnosis, system) -> dict:
 
 
 __all__ = ["MIN_TORSIONAL_POINTS", "MIN_SPEEDS", "SAME_SPEED_SHARE", "INSUFFICIENT", "Diagnosis", "decide",
-           "not_adopted_reason", "speeds_of",
+           "not_adopted_reason", "recalibration_trigger", "speeds_of",
            "shortfall", "locate"]

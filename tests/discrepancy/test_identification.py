@@ -145,8 +145,8 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     # whenever the verdict is "missing_effect"
     assert d.verdict in ("missing_effect", "unexplained")
     assert d.effect in (None, "pendulum_absorber") and (d.verdict == "unexplained") == (d.effect is None)
-    # the absorber's first fit leaves the training points at the noise level, so its
-    # re-calibration (naming.Namer.refit, docs/discrepancy.md Naming 3b) does not run here and
+    # the absorber's first fit leaves the training and the held-out points at the noise level, so
+    # its re-calibration (naming.Namer.refit, docs/discrepancy.md Naming 3b) does not run here and
     # the run bound below needs none of its runs
     assert lk["recalibrated"] is None, lk["recalibrated"]
     # each candidate is fitted from one start when its screen is clear: 684 runs on commit
@@ -178,7 +178,7 @@ def test_a_clean_campaign_names_nothing(control):
     # float paths read (HELD_OUT_CHI2_LOW says why the bounds are not 1 or 0.5)
     assert HELD_OUT_CHI2_LOW <= d.likelihood["reduced_chi2_held_out"] <= d.likelihood["noise_level"]
     assert d.likelihood["reduced_chi2_train"] >= TRAIN_CHI2_LOW
-    # no fit leaves the training points above the noise level: no re-calibration (Naming 3b)
+    # the leading fit leaves neither set above the noise level: no re-calibration (Naming 3b)
     assert d.likelihood["recalibrated"] is None, d.likelihood["recalibrated"]
 
 

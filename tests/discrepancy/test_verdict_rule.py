@@ -1,9 +1,11 @@
 """The verdict rule: an effect is adopted only when it is decisive and explains the held-out
-points; a more probable but not decisive effect is never adopted."""
+points; a more probable but not decisive effect is never adopted. And the rule that fits the
+leading effect again together with the calibration (docs/discrepancy.md, Naming 3b)."""
 
 import pytest
 
 from dampersim.discrepancy.diagnose import decide
+from dampersim.discrepancy.outcome import recalibration_trigger
 from dampersim.discrepancy.selection import DETECTION_POSTERIOR
 
 LEVEL = 1.5  # reduced chi^2 at the noise level
@@ -71,3 +73,23 @@ def test_the_page_and_report_summary_say_the_same(verdict, top, post, chi_top, c
     assert all(w in v["reason"] for w in words), v["reason"]
     assert "no candidate explains the data" not in v["reason"]
 
+
+@pytest.mark.parametrize("chi_train, chi_held, trigger", [
+    (0.7, 0.8, None),  # at the noise on both: the first fit stands
+    (3.85, 12.1, "training"),  # effect/inner_short_springs/typical/s0: the training misfit decides first
+    (3.85, 0.9, "training"),
+    # effect/spring_preload/typical/s0 on commit 09c39a4: the training points at 1.11, the held-out
+    # ones at 3.58; the calibration had read the preload as more friction
+    (1.11, 3.58, "held_out"),
+    (1.5, 1.5, None),  # at the level is within it, as in the verdict
+    (0.7, None, None),  # a failed held-out run gives no figure: no re-calibration on its account
+])
+def test_the_leading_effect_is_recalibrated_when_either_set_stays_above_the_noise(chi_train, chi_held, trigger):
+    assert recalibration_trigger(chi_train, LEVEL, chi_held, LEVEL) == trigger
+
+
+def test_each_set_is_read_against_its_own_level():
+    # the held-out set has fewer residuals, so its 99 % level (diagnose.noise_level) can lie above the training set's
+    assert recalibration_trigger(1.6, 1.5, 1.8, 1.9) == "training"
+    assert recalibration_trigger(1.4, 1.5, 1.8, 1.9) is None
+    assert recalibration_trigger(1.4, 1.5, 2.0, 1.9) == "held_out"
