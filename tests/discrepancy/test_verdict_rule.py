@@ -76,7 +76,7 @@ def test_the_page_and_report_summary_say_the_same(verdict, top, post, chi_top, c
 
 @pytest.mark.parametrize("chi_train, chi_held, trigger", [
     (0.7, 0.8, None),  # at the noise on both: the first fit stands
-    (3.85, 12.1, "training"),  # effect/inner_short_springs/typical/s0: the training misfit decides first
+    (3.85, 12.1, "training"),  # above on both: the training misfit decides first
     (3.85, 0.9, "training"),
     # effect/spring_preload/typical/s0 on commit 21a009d: the training points at 1.11, the held-out
     # ones at 3.58; the calibration had read the preload as more friction
