@@ -288,6 +288,10 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             fit["yh"] = None if failed else yh
             models[label] = fit
 
+        def held_chi2(fit):
+            """A fitted model's robust reduced chi^2 on the held-out points; None when its held-out run failed."""
+            return None if fit["yh"] is None else lik.robust_reduced_chi2(fit["yh"], held, fit["nuisance"])
+
         for j, name in enumerate(shortlisted):
             report(0.56 + 0.2 * j / len(shortlisted), f"name: fitting {name}")
             fits = namer.fit_candidate(name, screen[name])
@@ -303,9 +307,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         recalibrated = None  # {effect, adopted, trigger} when the leading effect was fitted again with the calibration
         trigger = None if lead is None else recalibration_trigger(
             lik.robust_reduced_chi2(models[lead]["y"], train, models[lead]["nuisance"]),
-            noise_level(2 * len(train) * len(drive.ORDERS)),
-            None if models[lead]["yh"] is None else lik.robust_reduced_chi2(models[lead]["yh"], held,
-                                                                             models[lead]["nuisance"]), level)
+            noise_level(2 * len(train) * len(drive.ORDERS)), held_chi2(models[lead]), level)
         if trigger is not None:
             # the leading effect leaves the training or the held-out misfit above the noise: the calibration
             # without it may have taken it up, out of the reach of the fits' linearisation (docs/discrepancy.md,
@@ -339,7 +341,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         best_single = max(singles, key=lambda n: models[n]["log_z"], default=None)
         if best_single is not None and len(singles) >= 2:
             f1 = models[best_single]
-            if models[best_single]["yh"] is None or lik.robust_reduced_chi2(f1["yh"], held, f1["nuisance"]) > level:
+            if (chi_1 := held_chi2(f1)) is None or chi_1 > level:
                 report(0.78, "name: trying a pair of effects")
                 second = max((n for n in singles if n != best_single), key=lambda n: models[n]["log_z"])
                 # the first effect stays as fitted: its magnitude's and shapes' prior terms count
@@ -390,7 +392,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
             if ramp_models.size_by_ramps(runner, models[top], pts, train, held, lik, ramp_lik, campaign.ramps):
                 ramp_runs[top] = ramps_lik.run_ramps(runner, models[top]["system"], campaign.ramps)
         # the verdict's misfit is robust: one bad held-out point cannot decide it alone
-        chi = {m: lik.robust_reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
+        chi = {m: held_chi2(models[m]) for m in judged}
         chi_plain = {m: lik.reduced_chi2(models[m]["yh"], held, models[m]["nuisance"]) for m in judged}
         verdict = decide(top, post.get(top, 0.0), chi[top], chi["none"], level)
         # detectability of every candidate (two more magnitudes each, from the calibrated start)

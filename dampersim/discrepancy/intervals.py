@@ -116,7 +116,7 @@ def effects_of(label, fit, jack_var=None) -> list:
     (``fit["sized_by_ramps"]``) keeps the ramps' variance: the torsional points did not set it."""
     out = []
     names, cols_of = fit.get("effects", []), columns(fit)
-    cov = fit.get("cov")
+    cov, own = fit.get("cov"), fit.get("sized_by_ramps", False)
 
     def sd(i, own=False):
         if cov is None:
@@ -129,7 +129,6 @@ def effects_of(label, fit, jack_var=None) -> list:
         e, cols = info(name), cols_of[name]
         m = fit["m"] if j == len(names) - 1 else fit.get("m_first", fit["m"])
         params = {e.magnitude: m}
-        own = fit.get("sized_by_ramps", False)
         intervals = {e.magnitude: selection.interval90(math.log(m), sd(cols[e.magnitude], own))}
         for q, v in reported_shapes(name, fit, len(names)).items():
             params[q] = v
