@@ -33,10 +33,11 @@ kinds measured).
 The budgets are work, not time, and kept their values when the rate was corrected:
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
-48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7e10 step·DOF (about 78 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 6.7e10 by
-:func:`diagnosis_cost`, is admitted, 4 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3111; the limit applies to every kind of request). Both are server
+48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.07e10 by
+:func:`diagnosis_cost`, is admitted, 6 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3279; the limit was 7e10 until the magnitude grid's
+continuation added 168 bounded runs; it applies to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
 (default 1 GiB).
@@ -80,8 +81,8 @@ DEFAULT_FOREGROUND_SLOTS = max(1, 8 // 2)
 FOREGROUND_SLOTS_ENV = "DAMPERSIM_FOREGROUND_SLOTS"
 #: Default autostart budget [step·DOF]: about 2.8 min of one core at STEP_DOF_PER_SECOND.
 DEFAULT_AUTOSTART = 2.5e9
-#: Default limit [step·DOF]: about 78 minutes of one core at STEP_DOF_PER_SECOND.
-DEFAULT_LIMIT = 7.0e10
+#: Default limit [step·DOF]: about 83 minutes of one core at STEP_DOF_PER_SECOND.
+DEFAULT_LIMIT = 7.5e10
 #: Default memory limit of one request [B]: 1 GiB.
 DEFAULT_BYTES_LIMIT = float(2**30)
 #: Environment variables of the budgets (read by :func:`budgets` at call time).
@@ -314,7 +315,8 @@ DIAGNOSIS_DERIVATIVE_STEPS = 2  # sensitivity steps an iteration may try in turn
 # than two sets per iteration in all)
 DIAGNOSIS_STEP_TRIALS = 3  # step lengths tried per iteration (CAL_STEP_FRACTIONS)
 DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
-DIAGNOSIS_FIT_RUNS = 5 + 8 + 3 + 1  # magnitude grid + bounded refinement + verification + derivative runs
+#: magnitude grid + its continuation beyond an end (at most 3) + bounded refinement + verification + derivative runs
+DIAGNOSIS_FIT_RUNS = 5 + 3 + 8 + 3 + 1
 DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
 #: screen runs per start beyond one per candidate: the short springs are read at 4 clearances
 #: (discrepancy.shapes.SCREEN_FACTORS), the other effects at their own shape
@@ -323,7 +325,8 @@ DIAGNOSIS_SCREEN_EXTRA = 4 - 1
 #: 1 to 3 springs (discrepancy.shapes.SCREEN_CHOICES; naming.Namer.choose)
 DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
-DIAGNOSIS_PAIR_RUNS = 5 + 8 + 1 + 1  # a pair's second magnitude: grid + refinement + verification + derivative
+#: a pair's second magnitude: grid + its continuation + refinement + verification + derivative
+DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + 1
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration the six factors' and the magnitude's sensitivities and the step

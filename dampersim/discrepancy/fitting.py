@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from dampersim.discrepancy.effects import info, parameters_of
+from dampersim.discrepancy.effects import clip_magnitude, info, parameters_of
 from dampersim.parameters import with_updates
 from dampersim.parameters.io import flat_values, named_values
 
@@ -58,6 +58,10 @@ CAL_STEP_FRACTIONS = (1.0, 0.5, 0.25)  # calibration step lengths tried, longest
 CAL_DERIVATIVE_STEPS = (0.05, 0.01)
 CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gauss-Newton (x0.74 .. x1.35)
 REFINE_EVALUATIONS = 8  # magnitude refinement after the grid: campaign runs per candidate
+#: values the magnitude grid is continued by, at its own ratio, beyond an end that holds its
+#: lowest objective (grid_bracket): the refinement searches between a grid value's neighbours
+#: only, and the grid's floor (weak / 1.8) lies above the benchmark's subtle level (weak / 2)
+GRID_EXTENSION = 3
 
 
 def _rms(x) -> float:
@@ -130,6 +134,35 @@ def _effect_grid(name, n=5):
     if meta["max"] is not None:
         hi = min(hi, meta["max"])
     return np.geomspace(lo, hi, n)
+
+
+def grid_bracket(name, objective, extension: int = GRID_EXTENSION) -> tuple:
+    """(low, high) log-magnitude bounds of the refinement of effect ``name``'s fit: the
+    neighbours of the value of its magnitude grid (:func:`_effect_grid`) where ``objective(m)``
+    (m in the magnitude's unit) is lowest. When that value is an end of the grid, the grid is
+    continued beyond it at its own ratio while the objective keeps falling, inside the
+    parameter's accepted range, by at most ``extension`` values: a fit whose best grid value
+    was the floor could not go below it (the typical spring preload, 15 N, sat at 8 N / 1.8
+    before its re-calibration; docs/discrepancy.md). No continuation when every grid run
+    failed (an infinite objective)."""
+    grid = [float(m) for m in _effect_grid(name)]
+    vals = [objective(m) for m in grid]
+    ratio = grid[1] / grid[0]
+    for _ in range(extension):
+        i = int(np.argmin(vals))
+        if not math.isfinite(vals[i]) or 0 < i < len(grid) - 1:
+            break
+        m = clip_magnitude(name, grid[0] / ratio if i == 0 else grid[-1] * ratio)
+        if abs(math.log(m / grid[i])) < 1e-9:  # the accepted range ends at the grid's end
+            break
+        if i == 0:
+            grid.insert(0, m)
+            vals.insert(0, objective(m))
+        else:
+            grid.append(m)
+            vals.append(objective(m))
+    i = int(np.argmin(vals))
+    return math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
 
 
 def _lstsq_bounded(J, r, x0):

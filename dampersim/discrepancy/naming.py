@@ -18,7 +18,7 @@ import numpy as np
 from dampersim.discrepancy import detect, drive, selection, shapes, unnamed
 from dampersim.discrepancy.effects import clip_magnitude, clip_to_range as _clip, info, parameters_of, with_effect
 from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
-    _effect_grid, _lstsq_bounded, calibrated_system, first_lower, prior_step
+    _lstsq_bounded, calibrated_system, first_lower, grid_bracket, prior_step
 from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, GAIN_PRIOR_SD
 from dampersim.discrepancy.shapes import SHAPES
 from dampersim.errors import ParameterError
@@ -227,8 +227,9 @@ class Namer:
 
     def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None):
         """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple
-        (system, x, y) to fit on top of another effect): a five-value grid, a bounded search
-        in log magnitude, a linearised re-calibration at every trial, then real runs against
+        (system, x, y) to fit on top of another effect): a five-value grid, continued beyond an
+        end that holds its lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`),
+        a bounded search in log magnitude, a linearised re-calibration at every trial, then real runs against
         the re-calibrated, the start's and the estimated factors. Returns a dict (cost, m, x,
         y, system, column: the standardised derivative w.r.t. log m) or None when every
         run failed. extra_prior: prior terms of parameters fitted before (a pair's first
@@ -253,9 +254,7 @@ class Namer:
                                        self._magnitude_prior(name, m) + extra_prior)
             return tried[m]
 
-        grid = _effect_grid(name)
-        i = int(np.argmin([at(float(m))[0] for m in grid]))
-        lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
+        lo, hi = grid_bracket(name, lambda m: at(m)[0])
         with np.errstate(invalid="ignore", over="ignore"):
             minimize_scalar(lambda u: at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
                             options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})
