@@ -19,6 +19,17 @@ the median sample uncertainty, for
   follow it (the diagnosis fits them on the torsional points and lets the ramp move them
   only within that fit's uncertainty).
 
+With ``--factors-from FILE`` (a ``bench_discrepancy.py --out`` file holding the case's line)
+the ramp is also replayed at the calibration factors that line reports (those of the
+diagnosis's most probable model), with each magnitude, then with the factors of the
+stiffnesses and inertias, and of the frictions, set to the truth's (each group's factor the
+geometric mean of its members' truth / estimate): which factors move the magnitude the ramp
+prefers. With ``--prediction-sd`` the ramp's predictive log likelihood
+(:meth:`~dampersim.discrepancy.ramps.RampLikelihood.predictive`, sensitivities at the
+reported factors with the first magnitude) is printed per magnitude for each standard
+deviation of the six log factors (independent): how loose the factors must be for the ramp
+to prefer a magnitude by its own shape rather than by what the factors leave.
+
 With ``--torsional`` the diagnosis's own compare and calibration steps run first (stopped
 where they hand over to the naming step), and each model's calibration objective on the
 training points is printed at the estimate's factors, the calibrated factors and the
@@ -28,12 +39,16 @@ of the six factors can fit the ramp and the torsional points together.
     python bench/bench_ramp_misfit.py effect/output_backlash/strong/s0
     python bench/bench_ramp_misfit.py effect/output_backlash/strong/s0 control/calibration/2 --torsional
     python bench/bench_ramp_misfit.py control/calibration/2 --magnitudes 0.01 0.024
+    python bench/bench_ramp_misfit.py effect/output_backlash/typical/s0 --magnitudes 0.03 0.0427 \
+        --factors-from G.jsonl --prediction-sd 0.01 0.03 0.1 --no-ramp-fit
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
+import math
 import os
 import sys
 import tempfile
@@ -74,6 +89,62 @@ def clean_input(truth, point) -> np.ndarray:
     """The truth's own input torque of the ramp [N m] on the record's time base (before the DAQ)."""
     res = simulate(truth, ramp_protocol(synth.RAMP_PROTOCOL, point.speed), record_segments=False)
     return np.interp(point.time, res.t - res.t[0], res.input_torque)
+
+
+def truth_factors(truth, estimate) -> np.ndarray:
+    """The truth's log calibration factors against the estimate: each group's geometric mean
+    of its members' ratios (dotted names of :data:`CALIBRATION`)."""
+    def value(system, dotted):
+        obj = system
+        for part in dotted.split("."):
+            obj = getattr(obj, part)
+        return float(obj)
+    return np.array([np.mean([math.log(value(truth, n) / value(estimate, n)) for n in members])
+                     for members in CALIBRATION.values()])
+
+
+def reported_factors(path, case_id) -> np.ndarray:
+    """The log calibration factors the line of ``case_id`` in a bench_discrepancy result file reports."""
+    with open(path, encoding="utf-8") as fh:
+        rows = [json.loads(line) for line in fh if line.strip()]
+    row = next((r for r in rows if r.get("id") == case_id), None)
+    if row is None or not row.get("calibration"):
+        raise SystemExit(f"{path}: no line with calibration factors for {case_id}")
+    return np.log([float(row["calibration"][k]) for k in CALIBRATION])
+
+
+#: calibration groups set to the truth's in the --factors-from replays
+GROUPS = {"stiffnesses and inertias": slice(0, 4), "frictions": slice(4, 6)}
+
+
+def at_factors(runner, lik, est, effect, mags, x, x_truth, sds, show) -> None:
+    """The --factors-from replays (see the module doc)."""
+    mag = info(effect).magnitude
+    variants = {"reported factors": x}
+    for label, part in GROUPS.items():
+        xv = x.copy()
+        xv[part] = x_truth[part]
+        variants[f"reported, {label} the truth's"] = xv
+    runs = {}
+    for label, xv in variants.items():
+        for m in mags:
+            runs[label, m] = run_ramps(runner, with_effect(calibrated_system(est, xv), effect, {mag: m}), lik.points)
+            show(f"{label} + {m:g}", misfit(lik, runs[label, m]))
+    if not sds:
+        return
+    at = runs["reported factors", mags[0]]
+    cols = []
+    for k in range(len(x)):
+        xk = x.copy()
+        xk[k] += STEP
+        cols.append(lik.column(run_ramps(runner, with_effect(calibrated_system(est, xk), effect, {mag: mags[0]}),
+                                         lik.points), at, STEP))
+    for sd in sds:
+        parts = []
+        for m in mags:
+            ll = lik.predictive(runs["reported factors", m], np.column_stack(cols), np.eye(len(x)) * sd ** 2)[0]
+            parts.append(f"{m:g}: {ll:8.2f}")
+        print(f"  predictive log likelihood, factors' sd {sd:g}: " + ", ".join(parts), flush=True)
 
 
 def unit(lik) -> float:
@@ -165,6 +236,14 @@ def main(argv=None):
                     help="also run the diagnosis's compare and calibration steps and print each model's "
                          "torsional objective at the estimate's factors, the calibrated factors and the "
                          "factors fitted to the ramp (whether one set of factors can fit both)")
+    ap.add_argument("--factors-from", metavar="FILE",
+                    help="a bench_discrepancy.py result file: also replay the ramp at the calibration factors "
+                         "its line for the case reports (see the module doc)")
+    ap.add_argument("--prediction-sd", type=float, nargs="*", default=[], metavar="SD",
+                    help="with --factors-from: standard deviations of the log factors for the ramp's predictive "
+                         "log likelihood per magnitude")
+    ap.add_argument("--no-ramp-fit", action="store_true",
+                    help="leave out the factors fitted to the ramp alone (29 replays per model)")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     matrix = S.named_cases(ap, a.cases)
@@ -199,8 +278,14 @@ def main(argv=None):
                                                         zip(ramps, run_ramps(runner, truth, clean).values())}))
             for label, system in models.items():
                 show(label, misfit(lik, run_ramps(runner, system, ramps)))
+            if a.factors_from:
+                x = reported_factors(a.factors_from, cid)
+                print(f"  reported factors {np.round(np.exp(x), 3).tolist()}, "
+                      f"truth's {np.round(np.exp(truth_factors(truth, est)), 3).tolist()}", flush=True)
+                at_factors(runner, lik, est, a.effect, a.magnitudes, x, truth_factors(truth, est),
+                           a.prediction_sd, show)
             fitted = {}
-            for label, system in models.items():
+            for label, system in ({} if a.no_ramp_fit else models).items():
                 x, e = ramp_calibration(runner, lik, system, ramps)
                 fitted[label] = x
                 if x is None:
@@ -214,7 +299,7 @@ def main(argv=None):
                       f"calibrated factors {np.round(tors['x'], 3).tolist()}")
                 for label, system in models.items():
                     costs = [float("nan") if x is None else torsional_cost(runner, tors, system, x)
-                             for x in (np.zeros(len(CALIBRATION)), tors["x"], fitted[label])]
+                             for x in (np.zeros(len(CALIBRATION)), tors["x"], fitted.get(label))]
                     at_cal = misfit(lik, run_ramps(runner, calibrated_system(system, tors["x"]), ramps))
                     print(f"  {label:48s} objective at estimate {costs[0]:9.1f}, calibrated {costs[1]:9.1f}, "
                           f"fitted to the ramp {costs[2]:9.1f}; ramp at the calibrated factors "
