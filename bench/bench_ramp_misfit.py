@@ -21,7 +21,8 @@ the median sample uncertainty, for
 
 With ``--factors-from FILE`` (a ``bench_discrepancy.py --out`` file holding the case's line)
 the ramp is also replayed at the calibration factors that line reports (those of the
-diagnosis's most probable model), with each magnitude, then with the factors of the
+adopted model for a ``missing_effect`` verdict, else the calibration without an effect),
+with each magnitude, then with the factors of the
 stiffnesses and inertias, and of the frictions, set to the truth's (each group's factor the
 geometric mean of its members' truth / estimate): which factors move the magnitude the ramp
 prefers. With ``--prediction-sd`` the ramp's predictive log likelihood
@@ -113,8 +114,9 @@ def reported_factors(path, case_id) -> np.ndarray:
     return np.log([float(row["calibration"][k]) for k in CALIBRATION])
 
 
-#: calibration groups set to the truth's in the --factors-from replays
-GROUPS = {"stiffnesses and inertias": slice(0, 4), "frictions": slice(4, 6)}
+#: calibration groups set to the truth's in the --factors-from replays (indices into CALIBRATION)
+GROUPS = {"stiffnesses and inertias": [k for k, g in enumerate(CALIBRATION) if not g.endswith("_friction")],
+          "frictions": [k for k, g in enumerate(CALIBRATION) if g.endswith("_friction")]}
 
 
 def at_factors(runner, lik, est, effect, mags, x, x_truth, sds, show) -> None:
@@ -135,10 +137,11 @@ def at_factors(runner, lik, est, effect, mags, x, x_truth, sds, show) -> None:
     at = runs["reported factors", mags[0]]
     cols = []
     for k in range(len(x)):
+        h = STEP if x[k] + STEP <= CAL_BOUND else -STEP  # the other way at the upper bound
         xk = x.copy()
-        xk[k] += STEP
+        xk[k] += h
         cols.append(lik.column(run_ramps(runner, with_effect(calibrated_system(est, xk), effect, {mag: mags[0]}),
-                                         lik.points), at, STEP))
+                                         lik.points), at, h))
     for sd in sds:
         parts = []
         for m in mags:
@@ -246,6 +249,8 @@ def main(argv=None):
                     help="leave out the factors fitted to the ramp alone (29 replays per model)")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
+    if a.prediction_sd and not a.factors_from:
+        ap.error("--prediction-sd needs --factors-from (the factors the prediction is read at)")
     matrix = S.named_cases(ap, a.cases)
     for cid in a.cases:
         case = matrix[cid]

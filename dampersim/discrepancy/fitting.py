@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from dampersim.discrepancy.effects import clip_magnitude, info, parameters_of
+from dampersim.discrepancy.effects import clip_magnitude, info
 from dampersim.parameters import with_updates
 from dampersim.parameters.io import flat_values, named_values
 
@@ -60,7 +60,8 @@ CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gau
 REFINE_EVALUATIONS = 8  # magnitude refinement after the grid: campaign runs per candidate
 #: values the magnitude grid is continued by, at its own ratio, beyond an end that holds its
 #: lowest objective (grid_bracket): the refinement searches between a grid value's neighbours
-#: only, and the grid's floor (weak / 1.8) lies above the benchmark's subtle level (weak / 2)
+#: only, and for the effects whose magnitude grows with them the grid's floor (weak / 1.8)
+#: lies above the benchmark's subtle level (weak / 2)
 GRID_EXTENSION = 3
 
 
@@ -123,17 +124,11 @@ def _resid(sim, meas):
 
 def _effect_grid(name, n=5):
     """Magnitudes to try for effect ``name``: a geometric span around its typical values,
-    kept inside the magnitude parameter's accepted range (a strictly positive floor
-    for a lower bound of 0, since the span is geometric)."""
+    kept inside the magnitude parameter's accepted range (:func:`clip_magnitude`: a strictly
+    positive floor for a lower bound of 0, since the span is geometric)."""
     e = info(name)
     lo, hi = min(e.magnitudes), max(e.magnitudes)
-    meta = next(p for p in parameters_of(name) if p["name"] == e.magnitude)
-    lo, hi = lo / 1.8, hi * 1.5
-    if meta["min"] is not None:
-        lo = max(lo, meta["min"], 1e-12)
-    if meta["max"] is not None:
-        hi = min(hi, meta["max"])
-    return np.geomspace(lo, hi, n)
+    return np.geomspace(clip_magnitude(name, lo / 1.8), clip_magnitude(name, hi * 1.5), n)
 
 
 def grid_bracket(name, objective, extension: int = GRID_EXTENSION) -> tuple:
@@ -143,25 +138,42 @@ def grid_bracket(name, objective, extension: int = GRID_EXTENSION) -> tuple:
     continued beyond it at its own ratio while the objective keeps falling, inside the
     parameter's accepted range, by at most ``extension`` values: a fit whose best grid value
     was the floor could not go below it (the typical spring preload, 15 N, sat at 8 N / 1.8
-    before its re-calibration; docs/discrepancy.md). No continuation when every grid run
-    failed (an infinite objective)."""
+    before its re-calibration; docs/discrepancy.md). The continuation stops at the first
+    value that is not lower than the end it continues; none when every grid run failed (an
+    infinite objective; NaN reads as infinite). Of equal objectives the value tried first is
+    the best, as :meth:`~dampersim.discrepancy.naming.Namer.fit` takes it."""
     grid = [float(m) for m in _effect_grid(name)]
-    vals = [objective(m) for m in grid]
+    tried = []  # the evaluation order of each grid value (vals: its objective)
+
+    def evaluate(m):
+        v = objective(m)
+        tried.append(len(tried))
+        return math.inf if math.isnan(v) else v
+
+    vals = [evaluate(m) for m in grid]
+
+    def best():
+        return min(range(len(vals)), key=lambda k: (vals[k], tried[k]))
+
     ratio = grid[1] / grid[0]
     for _ in range(extension):
-        i = int(np.argmin(vals))
+        i = best()
         if not math.isfinite(vals[i]) or 0 < i < len(grid) - 1:
             break
         m = clip_magnitude(name, grid[0] / ratio if i == 0 else grid[-1] * ratio)
-        if abs(math.log(m / grid[i])) < 1e-9:  # the accepted range ends at the grid's end
+        if (m >= grid[0]) if i == 0 else (m <= grid[-1]):  # the accepted range ends at the grid's end
             break
+        v = evaluate(m)
         if i == 0:
             grid.insert(0, m)
-            vals.insert(0, objective(m))
+            vals.insert(0, v)
+            tried.insert(0, tried.pop())
         else:
             grid.append(m)
-            vals.append(objective(m))
-    i = int(np.argmin(vals))
+            vals.append(v)
+        if not v < vals[1 if i == 0 else -2]:
+            break
+    i = best()
     return math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
 
 
@@ -200,5 +212,6 @@ def first_lower(trial, cost_now: float, fractions=CAL_STEP_FRACTIONS):
 
 
 __all__ = ["CALIBRATION", "UNCALIBRATED", "ESTIMATE_LOG_SD", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS",
-           "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "COARSE_SEGMENTS", "calibrated_system",
+           "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "GRID_EXTENSION", "COARSE_SEGMENTS",
+           "calibrated_system", "grid_bracket",
            "direction_step", "uncalibrated_systems", "coarse_system", "prior_step", "first_lower"]

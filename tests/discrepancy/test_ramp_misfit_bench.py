@@ -42,3 +42,14 @@ def test_the_reported_factors_are_the_case_lines(bench, tmp_path):
     np.testing.assert_allclose(bench.reported_factors(path, "b"), np.log(1.0 + np.arange(len(CALIBRATION)) / 10))
     with pytest.raises(SystemExit, match="no line with calibration factors for c"):
         bench.reported_factors(path, "c")
+
+
+def test_the_groups_split_the_factors_into_stiffnesses_and_inertias_and_frictions(bench):
+    names = list(CALIBRATION)
+    assert [names[k] for k in bench.GROUPS["frictions"]] == ["outer_friction", "inner_friction"]
+    assert sorted(bench.GROUPS["stiffnesses and inertias"] + bench.GROUPS["frictions"]) == list(range(len(names)))
+
+
+def test_a_prediction_spread_without_factors_is_the_parsers_error(bench):
+    with pytest.raises(SystemExit):
+        bench.main(["effect/output_backlash/typical/s0", "--prediction-sd", "0.03"])
