@@ -60,8 +60,8 @@ CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gau
 REFINE_EVALUATIONS = 8  # magnitude refinement after the grid: campaign runs per candidate
 #: values the magnitude grid is continued by, at its own ratio, beyond an end that holds its
 #: lowest objective (grid_bracket): the refinement searches between a grid value's neighbours
-#: only, and for the effects whose magnitude grows with them the grid's floor (weak / 1.8)
-#: lies above the benchmark's subtle level (weak / 2)
+#: only, and for an effect that grows with its magnitude the grid's floor (weak / 1.8) lies
+#: above the benchmark's subtle level (weak / 2)
 GRID_EXTENSION = 3
 
 
