@@ -66,6 +66,7 @@ from dampersim.discrepancy.fitting import CAL_BOUND, CALIBRATION, PRIOR_LOG_SD, 
 from dampersim.discrepancy.ramps import RampLikelihood, run_ramps  # noqa: E402
 from dampersim.excitation import ramp_protocol  # noqa: E402
 from dampersim.parameters import default_parameters  # noqa: E402
+from dampersim.parameters.io import named_values  # noqa: E402
 from dampersim.simulation import simulate  # noqa: E402
 
 #: log-factor step of the ramp's sensitivities (the diagnosis's longer step, 5 %), and iterations
@@ -95,13 +96,8 @@ def clean_input(truth, point) -> np.ndarray:
 def truth_factors(truth, estimate) -> np.ndarray:
     """The truth's log calibration factors against the estimate: each group's geometric mean
     of its members' ratios (dotted names of :data:`CALIBRATION`)."""
-    def value(system, dotted):
-        obj = system
-        for part in dotted.split("."):
-            obj = getattr(obj, part)
-        return float(obj)
-    return np.array([np.mean([math.log(value(truth, n) / value(estimate, n)) for n in members])
-                     for members in CALIBRATION.values()])
+    t, e = named_values(truth), named_values(estimate)
+    return np.array([np.mean([math.log(t[n] / e[n]) for n in members]) for members in CALIBRATION.values()])
 
 
 def reported_factors(path, case_id) -> np.ndarray:
