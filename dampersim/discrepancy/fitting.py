@@ -143,37 +143,24 @@ def grid_bracket(name, objective, extension: int = GRID_EXTENSION) -> tuple:
     infinite objective; NaN reads as infinite). Of equal objectives the value tried first is
     the best, as :meth:`~dampersim.discrepancy.naming.Namer.fit` takes it."""
     grid = [float(m) for m in _effect_grid(name)]
-    tried = []  # the evaluation order of each grid value (vals: its objective)
-
-    def evaluate(m):
-        v = objective(m)
-        tried.append(len(tried))
-        return math.inf if math.isnan(v) else v
-
-    vals = [evaluate(m) for m in grid]
-
-    def best():
-        return min(range(len(vals)), key=lambda k: (vals[k], tried[k]))
-
+    vals = [math.inf if math.isnan(v) else v for v in (objective(m) for m in grid)]
+    i = int(np.argmin(vals))  # the first of equal values: the one tried first
     ratio = grid[1] / grid[0]
     for _ in range(extension):
-        i = best()
         if not math.isfinite(vals[i]) or 0 < i < len(grid) - 1:
             break
         m = clip_magnitude(name, grid[0] / ratio if i == 0 else grid[-1] * ratio)
         if (m >= grid[0]) if i == 0 else (m <= grid[-1]):  # the accepted range ends at the grid's end
             break
-        v = evaluate(m)
+        v = objective(m)  # a NaN is not lower: the continuation stops there
         if i == 0:
             grid.insert(0, m)
             vals.insert(0, v)
-            tried.insert(0, tried.pop())
+            i = 0 if v < vals[1] else 1
         else:
             grid.append(m)
             vals.append(v)
-        if not v < vals[1 if i == 0 else -2]:
-            break
-    i = best()
+            i = i + 1 if v < vals[i] else i
     return math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
 
 
