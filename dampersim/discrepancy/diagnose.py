@@ -22,7 +22,8 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, fitting, intervals, model_terms, pickup, ramp_models, selection
+from dampersim.discrepancy import design, drive, fitting, intervals, model_terms, partner, pickup, ramp_models, \
+    selection
 from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
@@ -342,17 +343,25 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         if best_single is not None and len(singles) >= 2:
             f1 = models[best_single]
             if (chi_1 := held_chi2(f1)) is None or chi_1 > level:
-                report(0.78, "name: trying a pair of effects")
-                second = max((n for n in singles if n != best_single), key=lambda n: models[n]["log_z"])
+                report(0.78, "name: screening the partners of a pair")
+                # the partner explains what the first fit leaves: every other candidate screened on
+                # top of it (the second-best single fit when every such run failed)
+                gained = partner.gains(namer, best_single, f1, cands, eta)
+                second = partner.choose(gained, max((n for n in singles if n != best_single),
+                                                    key=lambda n: models[n]["log_z"]))
+                report(0.79, f"name: trying the pair {best_single} + {second}")
                 # the first effect stays as fitted: its magnitude's and shapes' prior terms count
                 prior_1 = namer._magnitude_prior(best_single, f1["m"]) + namer.shape_prior(
                     best_single, {**f1.get("shape_start", {}), **f1.get("shapes", {})})
-                label = "+".join(sorted([best_single, second]))
-                # the second effect at the shape its own fit reached, held (its prior term counts)
+                label = partner.pair_label(best_single, second)
+                # the second effect held at the shape its own single fit reached, or, not fitted
+                # alone, at its best screened shape on top of the first (its prior term counts)
+                shape_2 = (namer.shape_values(second, models[second]["system"]) if second in models
+                           else gained.get(second, (0.0, {}))[1])
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
-                                jac=namer.jac_of(f1), shape=namer.shape_values(second, models[second]["system"]))
+                                jac=namer.jac_of(f1), shape=shape_2)
                 if fit is not None:
-                    fit["log_mass"] = f1.get("log_mass", 0.0) + models[second].get("log_mass", 0.0)
+                    fit["log_mass"] = f1.get("log_mass", 0.0) + models.get(second, {}).get("log_mass", 0.0)
                     fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]
                     fit["columns"] = [f1["column"], fit["column"]]

@@ -1,0 +1,85 @@
+"""A pair's second effect: each other candidate screened on what the leading single fit leaves.
+
+The second effect of a pair has to explain the misfit that remains once the first is fitted,
+not the whole discrepancy: ranking the partners by their own single fits picks the effect
+that best imitates the first one. So every other candidate is run once at its typical
+magnitude (and at each screened shape) on top of the leading fit, and the linear screen of
+:meth:`~dampersim.discrepancy.naming.Namer.screen` (calibration factors re-fitted under their
+prior, the effect's scale under its magnitude prior) reads that signature against the leading
+fit's standardised residual. The candidate whose evidence gains most over the leading fit
+alone is the partner.
+"""
+
+from __future__ import annotations
+
+import math
+
+from dampersim.discrepancy import selection, shapes
+from dampersim.discrepancy.effects import info, with_effect
+from dampersim.discrepancy.fitting import PRIOR_LOG_SD
+from dampersim.discrepancy.naming import MIN_SCREEN_SCALE
+from dampersim.errors import ParameterError
+
+
+def pair_label(first: str, second: str) -> str:
+    """The posterior's key of a pair: the two effect names sorted, joined by "+"."""
+    return "+".join(sorted([first, second]))
+
+
+def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
+    """{candidate: (log evidence gain [nats] of adding it to the leading fit, the shape values
+    of its best screened variant)} for every candidate but ``lead``. ``fit``: the leading
+    single fit (system, factors ``x``, training coefficients ``y``); ``namer``: the naming
+    step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the learning rate the
+    likelihood is tempered by. The gain sums the candidate's screened shapes with their prior
+    weights (shapes.variants), like the single screen; it is -inf when every run of the
+    candidate on top of the leading fit failed (the failures are recorded against the pair's
+    label) or the parameter set refuses it there."""
+    k = math.sqrt(eta)
+    jac = namer.jac_of(fit)
+    nu = namer.lik.profile(fit["y"], namer.train)[1]
+    with namer.lik.using(nu):
+        r = namer.lik.mvec(namer.train) - namer.lik.vec(fit["y"], namer.train)
+    z_lead = selection.linear_screen_evidence(k * r, k * jac, None, fit["x"], PRIOR_LOG_SD)[0]
+    out = {}
+    for name in candidates:
+        if name == lead:
+            continue
+        e = info(name)
+        own = namer.library_effect(name)
+        variants = shapes.renormalised(namer.admissible(name, shapes.variants(name, own))) or [({}, 0.0)]
+        scored = []
+        for vals, lw in variants:
+            try:
+                system = with_effect(fit["system"], name, {**vals, e.magnitude: e.magnitudes[1]})
+            except ParameterError:  # refused beside the leading effect: not run
+                scored.append((vals, -math.inf))
+                continue
+            y, failed = namer.runs(system, pair_label(lead, name))
+            if failed:
+                scored.append((vals, -math.inf))
+                continue
+            with namer.lik.using(nu):
+                d = namer.w(y - fit["y"])
+            z = selection.linear_screen_evidence(k * r, k * jac, k * d, fit["x"], PRIOR_LOG_SD,
+                                                 min_scale=MIN_SCREEN_SCALE)[0]
+            scored.append((vals, lw + z))
+        total = shapes.logsumexp(z for _, z in scored)
+        out[name] = (total - z_lead, max(scored, key=lambda t: t[1])[0])
+    return out
+
+
+def choose(gained: dict, fallback: str | None) -> str | None:
+    """The partner: the candidate of highest gain (the first listed on ties); ``fallback`` when
+    no candidate has a finite gain."""
+    finite = [(n, g) for n, (g, _) in gained.items() if math.isfinite(g)]
+    if not finite:
+        return fallback
+    best = finite[0]
+    for n, g in finite[1:]:
+        if g > best[1]:
+            best = (n, g)
+    return best[0]
+
+
+__all__ = ["pair_label", "gains", "choose"]

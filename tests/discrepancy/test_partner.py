@@ -1,0 +1,123 @@
+"""The pair's partner (discrepancy.partner): every other candidate screened on what the leading
+fit leaves. A linear toy of four effects stands in for the simulations (the diagnosis's runs are
+patched), with one candidate that imitates the leading effect and the true partner, whose
+signature the leading effect cannot take up."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from dampersim import costs
+from dampersim.discrepancy import drive, naming, partner, selection
+from dampersim.discrepancy.effects import info
+from dampersim.discrepancy.fitting import PRIOR_LOG_SD
+from dampersim.discrepancy.likelihood import Likelihood
+
+from tests.discrepancy.toy_namer import BASE, log_factors, patch_runs
+
+LEAD, TRUE_PARTNER, IMITATOR, OTHER = "pendulum_absorber", "spring_preload", "turbine_drag", "inner_short_springs"
+CANDIDATES = [LEAD, TRUE_PARTNER, IMITATOR, OTHER]
+POINTS = [SimpleNamespace(id=f"p{i}") for i in range(4)]
+RNG = np.random.default_rng(5)
+SHAPE = (len(POINTS), len(drive.ORDERS))
+#: each effect's signature at its typical magnitude [N m]; the imitator's is mostly the lead's
+SIG = {n: RNG.normal(size=SHAPE) * (1 + 1j) for n in CANDIDATES}
+SIG[IMITATOR] = 0.95 * SIG[LEAD] + 0.15 * RNG.normal(size=SHAPE) * (1 + 1j)
+SENS = RNG.normal(size=(*SHAPE, 6)) * 0.5 * (1 + 1j)
+SD = 0.05  # [N m] each cell's standard deviation
+
+
+def _toy(system):
+    """Coefficients [N m]: linear in the calibration's log factors and in each switched-on
+    effect's magnitude over its typical one."""
+    y = 10.0 + SENS @ log_factors(system)
+    for n in CANDIDATES:
+        eff = getattr(system.effects, n)
+        if eff.enabled:
+            y = y + SIG[n] * getattr(eff, info(n).magnitude) / info(n).magnitudes[1]
+    return y
+
+
+def _namer(monkeypatch, fails=lambda runner, s: False):
+    calls = []
+    patch_runs(monkeypatch, _toy, fails, calls)
+    truth = naming.with_effect(naming.with_effect(BASE, LEAD, {"inertia": 0.001}), TRUE_PARTNER, {"force": 10.0})
+    meas = _toy(truth)
+    lik = Likelihood(meas, np.full(meas.shape, SD), [100.0] * len(POINTS), drive.ORDERS)
+    train = list(range(len(POINTS)))
+    jac = np.column_stack([lik.vec(SENS[..., k], train) for k in range(6)])
+    starts = {"calibrated": (BASE, np.zeros(6), None), "estimated": (BASE, np.zeros(6), None)}
+    out = naming.Namer(SimpleNamespace(), lik, train, POINTS, jac, starts, {n: {} for n in CANDIDATES})
+    out.calls = calls
+    return out
+
+
+def _lead_fit(namer):
+    system = naming.with_effect(BASE, LEAD, {"inertia": 0.001})
+    return {"system": system, "x": np.zeros(6), "y": _toy(system)}
+
+
+def test_the_partner_is_the_effect_the_leading_fit_leaves_not_its_imitator(monkeypatch):
+    namer = _namer(monkeypatch)
+    gained = partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
+    assert set(gained) == {TRUE_PARTNER, IMITATOR, OTHER}  # never the leading effect itself
+    assert partner.choose(gained, fallback=IMITATOR) == TRUE_PARTNER
+    # the residual is the preload's signature at 2/3 of its typical size, thousands of standard
+    # deviations: its gain is about 8500 nats, the others' at most about 140 (chance alignment of
+    # their random parts with that residual); a tenth of it leaves a wide margin on both sides
+    assert gained[TRUE_PARTNER][0] > 10.0 * max(gained[IMITATOR][0], gained[OTHER][0], 1.0)
+    # read alone against the data without any effect, the imitator ranks above the true partner:
+    # a choice by the singles' evidence would pick it (the rule this module replaced)
+    r = namer.lik.vec(namer.lik.meas - _toy(BASE), namer.train)
+
+    def single(n):
+        d = namer.w(_toy(naming.with_effect(BASE, n, {info(n).magnitude: info(n).magnitudes[1]})) - _toy(BASE))
+        return selection.linear_screen_evidence(r, namer.jac, d, np.zeros(6), PRIOR_LOG_SD)[0]
+
+    assert single(IMITATOR) > single(TRUE_PARTNER)
+
+
+def test_the_partner_screen_stays_inside_the_counted_runs(monkeypatch):
+    # one run per training point for each other candidate, the short springs at their screened
+    # clearances: the cost model's bound for the partner screen
+    namer = _namer(monkeypatch)
+    partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
+    bound = (len(CANDIDATES) - 1 + costs.DIAGNOSIS_SCREEN_EXTRA) * len(POINTS)
+    assert len(namer.calls) == bound  # the short springs are among the others: the bound is reached
+
+
+def test_a_candidate_whose_runs_fail_on_top_of_the_lead_gains_nothing_and_is_recorded(monkeypatch):
+    namer = _namer(monkeypatch, fails=lambda runner, s: s.effects.spring_preload.enabled)
+    gained = partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
+    assert gained[TRUE_PARTNER][0] == -math.inf
+    assert partner.choose(gained, fallback=IMITATOR) != TRUE_PARTNER
+    assert set(namer.failures[partner.pair_label(LEAD, TRUE_PARTNER)]) == {p.id for p in POINTS}
+    # the failures are recorded against the pair, not against the single effect's own fit
+    assert namer.failures[TRUE_PARTNER] == {}
+
+
+def test_the_tempered_screen_reads_the_likelihood_at_the_learning_rate(monkeypatch):
+    # eta scales every standardised vector by sqrt(eta): the data's pull on the gain shrinks with it
+    namer = _namer(monkeypatch)
+    full = partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)[TRUE_PARTNER][0]
+    half = partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES, eta=0.5)[TRUE_PARTNER][0]
+    assert 0.4 * full < half < 0.6 * full
+
+
+@pytest.mark.parametrize("gained, fallback, expected", [
+    ({"a": (1.0, {}), "b": (3.0, {}), "c": (2.0, {})}, "z", "b"),
+    ({"a": (2.0, {}), "b": (2.0, {})}, "z", "a"),  # ties: the first listed
+    ({"a": (-math.inf, {}), "b": (-5.0, {})}, "z", "b"),  # a negative gain still beats a failed screen
+    ({"a": (-math.inf, {}), "b": (-math.inf, {})}, "z", "z"),  # every screen failed: the fallback
+    ({}, None, None),
+])
+def test_choose(gained, fallback, expected):
+    assert partner.choose(gained, fallback) == expected
+
+
+def test_the_pair_label_is_order_free():
+    assert partner.pair_label("b_effect", "a_effect") == partner.pair_label("a_effect", "b_effect") == "a_effect+b_effect"
