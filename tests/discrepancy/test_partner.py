@@ -121,3 +121,37 @@ def test_choose(gained, fallback, expected):
 
 def test_the_pair_label_is_order_free():
     assert partner.pair_label("b_effect", "a_effect") == partner.pair_label("a_effect", "b_effect") == "a_effect+b_effect"
+
+
+def test_the_diagnosis_tries_the_lead_with_the_partner_the_screen_chose(monkeypatch):
+    """The pair step's wiring, on the stand-in model of tests.discrepancy.fake_rig (six points,
+    two held out): the noise level is set below every model's held-out misfit so that the pair
+    step runs, and the partner is taken from the screen's gains even when it was never fitted
+    alone (the preload: not among the three the first screen shortlisted)."""
+    from dampersim.discrepancy import diagnose as dg
+    from tests.discrepancy import fake_rig as F
+
+    seen = {}
+    real_gains = partner.gains
+
+    def gains(namer, lead, fit, candidates, eta=1.0):
+        seen["lead"], seen["eta"] = lead, eta
+        seen["gains"] = real_gains(namer, lead, fit, candidates, eta)
+        return seen["gains"]
+
+    monkeypatch.setattr(partner, "gains", gains)
+    monkeypatch.setattr(partner, "choose", lambda gained, fallback: "spring_preload")
+    monkeypatch.setattr(dg, "noise_level", lambda dof: 0.1)  # every held-out misfit lies above it
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model(None))
+    cands = ["clutch_slip", "turbine_drag", "pendulum_absorber", "spring_preload"]
+    d = dg.diagnose(F.campaign([F.point(*p) for p in F.POINTS]), workers=1, candidates=cands)
+    assert set(seen["gains"]) == set(cands) - {seen["lead"]}
+    assert 0.0 < seen["eta"] <= 1.0
+    label = partner.pair_label(seen["lead"], "spring_preload")
+    assert label in d.posterior
+    row = next(r for r in d.ranking if r["effect"] == label)
+    assert "force" in row["parameters"] and row["fitted_from"] == "pair"
+    # the preload was only screened: no single fit of it, so its shape is the screen's
+    assert next(r for r in d.ranking if r["effect"] == "spring_preload")["parameters"] == {}
+    # the partner screen is inside the runs the cost model bounds
+    assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))
