@@ -327,9 +327,10 @@ DIAGNOSIS_SCREEN_EXTRA = 4 - 1
 DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
 #: a pair's second magnitude: grid + its continuation + refinement + verification + derivative
+#: (the second effect itself is chosen by screening every other candidate once on top of the
+#: leading fit, discrepancy.partner.gains, the short springs at DIAGNOSIS_SCREEN_EXTRA more
+#: shapes: counted apart in :func:`diagnosis_runs`)
 DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + 1
-#: ... chosen by screening every other candidate once on top of the leading fit
-#: (discrepancy.partner.gains; the short springs at DIAGNOSIS_SCREEN_EXTRA more shapes)
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration the six factors' and the magnitude's sensitivities and the step
@@ -369,7 +370,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     DIAGNOSIS_CHOICE_RUNS runs) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), the
     leading effect fitted again with the calibration (and its held-out check), a pair of
-    effects (its partner screened among the other candidates on top of the leading fit), the detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
+    effects (its partner screened among the other candidates on top of the leading fit), the
+    detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
     next-test design's runs have their own length (:func:`diagnosis_cost`)."""
     n = max(0, int(n_points))
     held = n // 3 + (1 if n % 3 >= 2 else 0)

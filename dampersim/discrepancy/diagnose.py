@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from dampersim.discrepancy import design, drive, fitting, intervals, model_terms, partner, pickup, ramp_models, \
-    selection
+    selection, shapes
 from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
@@ -361,7 +361,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
                 if fit is not None:
-                    fit["log_mass"] = f1.get("log_mass", 0.0) + models.get(second, {}).get("log_mass", 0.0)
+                    # a discrete shape (the short springs' count) not chosen by runs holds the set's
+                    # choice at its equal prior share
+                    mass_2 = models[second].get("log_mass", 0.0) if second in models else \
+                        -math.log(max(1, len(shapes.choices(second))))
+                    fit["log_mass"] = f1.get("log_mass", 0.0) + mass_2
                     fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]
                     fit["columns"] = [f1["column"], fit["column"]]

@@ -157,13 +157,14 @@ def spread(fit, variance) -> dict:
 def reported_shapes(name, fit, n_effects: int) -> dict:
     """The shape values a single effect's model holds: its fitted shapes (where the shape step
     left them, or where the fit started when the step was refused) and its discrete choices
-    (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`); none for a pair, whose second
-    effect keeps the shape of its own fit."""
-    if n_effects != 1:
-        return {}
+    (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`). A pair holds both effects' shapes
+    (the first at its single fit's, the second at its own single fit's or its best screened
+    shape): their values as the pair's parameter set has them, none of them fitted."""
     eff = getattr(fit["system"].effects, name)
-    return {**fit.get("shape_start", {}), **fit.get("shapes", {}),
-            **{q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}}
+    choices = {q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}
+    if n_effects != 1:
+        return {**{q: getattr(eff, q) for q in shapes.SHAPES.get(name, ())}, **choices}
+    return {**fit.get("shape_start", {}), **fit.get("shapes", {}), **choices}
 
 
 __all__ = ["point_groups", "jackknife", "columns", "effects_of", "spread", "reported_shapes"]

@@ -32,9 +32,10 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
     single fit (system, factors ``x``, training coefficients ``y``); ``namer``: the naming
     step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the learning rate the
     likelihood is tempered by. The gain sums the candidate's screened shapes with their prior
-    weights (shapes.variants), like the single screen; it is -inf when every run of the
-    candidate on top of the leading fit failed (the failures are recorded against the pair's
-    label) or the parameter set refuses it there."""
+    weights (shapes.variants), like the single screen; it is -inf, with the parameter set's
+    own shape ({}), when every run of the candidate on top of the leading fit failed or the
+    parameter set refuses it there. Failed runs are recorded against the candidate, as its
+    own screen's are: the effect is what made the model fail there."""
     k = math.sqrt(eta)
     jac = namer.jac_of(fit)
     nu = namer.lik.profile(fit["y"], namer.train)[1]
@@ -55,7 +56,7 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
             except ParameterError:  # refused beside the leading effect: not run
                 scored.append((vals, -math.inf))
                 continue
-            y, failed = namer.runs(system, pair_label(lead, name))
+            y, failed = namer.runs(system, name)
             if failed:
                 scored.append((vals, -math.inf))
                 continue
@@ -65,7 +66,8 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
                                                  min_scale=MIN_SCREEN_SCALE)[0]
             scored.append((vals, lw + z))
         total = shapes.logsumexp(z for _, z in scored)
-        out[name] = (total - z_lead, max(scored, key=lambda t: t[1])[0])
+        best = max(scored, key=lambda t: t[1])[0] if math.isfinite(total) else {}
+        out[name] = (total - z_lead, best)
     return out
 
 

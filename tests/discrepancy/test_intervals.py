@@ -207,7 +207,10 @@ def test_a_pairs_magnitudes_read_their_own_columns():
     fit = {"effects": ["turbine_drag", "pendulum_absorber"], "m_first": 3.0, "m": 0.002, "cov": np.diag(lap),
            "system": system}
     drag, absorber = intervals.effects_of("turbine_drag+pendulum_absorber", fit, jack)
-    assert drag["parameters"] == {"coefficient": 3.0} and absorber["parameters"] == {"inertia": 0.002}
+    # the absorber's shapes are held, listed at the set's values with no interval
+    assert drag["parameters"] == {"coefficient": 3.0}
+    assert absorber["parameters"] == {"inertia": 0.002, "order": 2.0, "damping": 0.02}
+    assert set(drag["intervals"]) == {"coefficient"} and set(absorber["intervals"]) == {"inertia"}
     assert _log_half_width(drag, "coefficient") == pytest.approx(0.04)  # the jackknife's 0.0016
     assert _log_half_width(absorber, "inertia") == pytest.approx(0.03)  # the Laplace 0.0009
     spread = intervals.spread(fit, jack)
