@@ -338,7 +338,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
 
         eta = temper()  # before the pair is chosen: the singles are ranked by tempered evidence
         singles = [n for n in shortlisted if n in models]
-        pairs = []
+        pairs, partners = [], None  # partners: the partner screen's gains [nats], when it ran
         best_single = max(singles, key=lambda n: models[n]["log_z"], default=None)
         if best_single is not None and len(singles) >= 2:
             f1 = models[best_single]
@@ -347,6 +347,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 # the partner explains what the first fit leaves: every other candidate screened on
                 # top of it (the second-best single fit when every such run failed)
                 gained = partner.gains(namer, best_single, f1, cands, eta)
+                partners = {n: (g if math.isfinite(g) else None) for n, (g, _) in gained.items()}
                 second = partner.choose(gained, max((n for n in singles if n != best_single),
                                                     key=lambda n: models[n]["log_z"]))
                 report(0.79, f"name: trying the pair {best_single} + {second}")
@@ -503,7 +504,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                                  "delay_ms": 1e3 * float(final["nuisance"][1])},
                     "log_evidence": log_z, "model_prior": priors, "learning_rate": eta,
                     "held_out_penalty": penalty, "calibration_taken_from": models["none"].get("refactored"),
-                    "recalibrated": recalibrated, "interval_spread": intervals.spread(final, jack),
+                    "recalibrated": recalibrated, "pair_partners": partners,
+                    "interval_spread": intervals.spread(final, jack),
                     "interval_spread_noise": intervals.spread(final, jack_noise),
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,

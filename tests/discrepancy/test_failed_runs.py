@@ -163,6 +163,8 @@ def test_the_posterior_is_built_from_the_penalised_evidences(monkeypatch):
     monkeypatch.setattr(selection, "model_log_evidence", spy)
     d = run(monkeypatch, None, candidates=["clutch_slip", "turbine_drag"])
     assert seen["penalty"] == d.likelihood["held_out_penalty"] and seen["penalty"]  # every fitted model has one
+    # the leading effect predicts the held-out points at the noise here: no pair, no partner screen
+    assert seen["pairs"] == [] and d.likelihood["pair_partners"] is None
     assert seen["log_z"] == d.likelihood["log_evidence"]
     # the ramps' term as the posterior read it (this stand-in campaign has none: {})
     assert seen["ramp_ll"] == d.likelihood["ramp_log_likelihood"]
