@@ -358,7 +358,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 # the second effect held at the shape its own single fit reached, or, not fitted
                 # alone, at its best screened shape on top of the first (its prior term counts)
                 shape_2 = (namer.shape_values(second, models[second]["system"]) if second in models
-                           else gained.get(second, (0.0, {}))[1])
+                           else gained[second][1])
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
                 if fit is not None:

@@ -75,13 +75,7 @@ def choose(gained: dict, fallback: str | None) -> str | None:
     """The partner: the candidate of highest gain (the first listed on ties); ``fallback`` when
     no candidate has a finite gain."""
     finite = [(n, g) for n, (g, _) in gained.items() if math.isfinite(g)]
-    if not finite:
-        return fallback
-    best = finite[0]
-    for n, g in finite[1:]:
-        if g > best[1]:
-            best = (n, g)
-    return best[0]
+    return max(finite, key=lambda t: t[1])[0] if finite else fallback  # max keeps the first of equals
 
 
 __all__ = ["pair_label", "gains", "choose"]
