@@ -88,7 +88,7 @@ class Namer:
         the shape-summed log evidence; -inf: every run failed)}."""
         e = info(name)
         own = self.library_effect(name)
-        variants = shapes.renormalised(self.admissible(name, shapes.variants(name, own))) or [({}, 0.0)]
+        variants = self.screen_variants(name)
         best, parts, start_z, kept = None, [], {}, {}
         for start, (s0, x0, y_s) in self.starts.items():
             nu = self.lik.profile(y_s, self.train)[1]  # this start's own nuisance
@@ -214,6 +214,13 @@ class Namer:
                 continue
             out.append((vals, lw))
         return out
+
+    def screen_variants(self, name) -> list:
+        """The (shape values, log weight) effect ``name`` is screened at: shapes.variants around
+        the parameter set's shape, those it refuses left out, the weights renormalised (the
+        set's own shape, ({}, 0), when it refuses them all)."""
+        own = self.library_effect(name)
+        return shapes.renormalised(self.admissible(name, shapes.variants(name, own))) or [({}, 0.0)]
 
     def shape_values(self, name, system) -> dict:
         """The fitted and screened shape values of effect ``name`` in ``system``."""

@@ -47,10 +47,8 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
         if name == lead:
             continue
         e = info(name)
-        own = namer.library_effect(name)
-        variants = shapes.renormalised(namer.admissible(name, shapes.variants(name, own))) or [({}, 0.0)]
         scored = []
-        for vals, lw in variants:
+        for vals, lw in namer.screen_variants(name):
             try:
                 system = with_effect(fit["system"], name, {**vals, e.magnitude: e.magnitudes[1]})
             except ParameterError:  # refused beside the leading effect: not run
