@@ -329,7 +329,8 @@ DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the 
 #: a pair's second magnitude: grid + its continuation + refinement + verification + derivative
 #: (the second effect itself is chosen by screening every other candidate once on top of the
 #: leading fit, discrepancy.partner.gains, the short springs at DIAGNOSIS_SCREEN_EXTRA more
-#: shapes: counted apart in :func:`diagnosis_runs`)
+#: shapes, and their count by DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape: counted
+#: apart in :func:`diagnosis_runs`)
 DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + 1
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
@@ -370,7 +371,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     DIAGNOSIS_CHOICE_RUNS runs) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), the
     leading effect fitted again with the calibration (and its held-out check), a pair of
-    effects (its partner screened among the other candidates on top of the leading fit), the
+    effects (its partner screened among the other candidates on top of the leading fit, the
+    short springs' count chosen there), the
     detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
     next-test design's runs have their own length (:func:`diagnosis_cost`)."""
     n = max(0, int(n_points))
@@ -389,7 +391,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
     runs += DIAGNOSIS_PAIR_RUNS * train + held
-    runs += (int(n_candidates) - 1 + DIAGNOSIS_SCREEN_EXTRA) * train if n_candidates >= 2 else 0
+    runs += (int(n_candidates) - 1 + DIAGNOSIS_SCREEN_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train if n_candidates >= 2 else 0
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing
     return int(runs)

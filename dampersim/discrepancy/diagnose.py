@@ -22,8 +22,8 @@ import time
 
 import numpy as np
 
-from dampersim.discrepancy import design, drive, fitting, intervals, model_terms, partner, pickup, ramp_models, \
-    selection, shapes
+from dampersim.discrepancy import (design, drive, fitting, intervals, model_terms, partner, pickup, ramp_models,
+                                   selection)
 from dampersim.discrepancy import unnamed as misfit
 from dampersim.discrepancy import ramps as ramps_lik
 from dampersim.discrepancy.effects import NAMES, info, with_effect
@@ -347,7 +347,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 # the partner explains what the first fit leaves: every other candidate screened on
                 # top of it (the second-best single fit when every such run failed)
                 gained = partner.gains(namer, best_single, f1, cands, eta)
-                partners = {n: (g if math.isfinite(g) else None) for n, (g, _) in gained.items()}
+                partners = {n: (g if math.isfinite(g) else None) for n, (g, *_) in gained.items()}
                 second = partner.choose(gained, max((n for n in singles if n != best_single),
                                                     key=lambda n: models[n]["log_z"]))
                 report(0.79, f"name: trying the pair {best_single} + {second}")
@@ -355,17 +355,11 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 prior_1 = namer._magnitude_prior(best_single, f1["m"]) + namer.shape_prior(
                     best_single, {**f1.get("shape_start", {}), **f1.get("shapes", {})})
                 label = partner.pair_label(best_single, second)
-                # the second effect held at the shape its own single fit reached, or, not fitted
-                # alone, at its best screened shape on top of the first (its prior term counts)
-                shape_2 = (namer.shape_values(second, models[second]["system"]) if second in models
-                           else gained[second][1])
+                # the second effect held at a shape read on top of the first (its prior term counts)
+                shape_2, mass_2 = partner.shape(namer, second, f1, gained, models, label, prior_1)
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
                 if fit is not None:
-                    # a discrete shape (the short springs' count) not chosen by runs holds the set's
-                    # choice at its equal prior share
-                    mass_2 = models[second].get("log_mass", 0.0) if second in models else \
-                        -math.log(max(1, len(shapes.choices(second))))
                     fit["log_mass"] = f1.get("log_mass", 0.0) + mass_2
                     fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]

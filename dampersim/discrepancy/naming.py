@@ -163,9 +163,11 @@ class Namer:
             f["log_mass"] = log_mass
         return sorted(fits, key=lambda f: f["cost"])
 
-    def choose(self, name, screened) -> tuple:
+    def choose(self, name, screened, jac=None, label: str | None = None, extra: float = 0.0) -> tuple:
         """(shape, log prior mass) to fit an effect with discrete shapes at (shapes.SCREEN_CHOICES):
-        each choice runs once from the screen's start and shape at the magnitude that keeps the
+        each choice runs once from the screen's start (a key of starts, or (system, x, y) on top of
+        another effect's fit, with that fit's ``jac``, failures recorded against ``label`` and
+        ``extra`` prior terms) and shape at the magnitude that keeps the
         screen's total (shapes.magnitude_at_choice: the same count x stiffness), and the lowest
         objective (:meth:`_trial`) wins. The linear screen scales a signature as a whole, so two
         springs at 360 N m/rad look to it as three at 240; below the clearance each short pair
@@ -182,14 +184,16 @@ class Namer:
         if len(options) < 2:  # nothing to choose among (the set accepts one choice at most)
             return (options[0] if options else shape), 0.0
         e = info(name)
-        s0, x0, _ = self.starts[screened["start"]]
+        start = screened["start"]
+        s0, x0, _ = self.starts[start] if isinstance(start, str) else start
         held = {q: getattr(own, q) for q in shapes.SCREEN_CHOICES[name]}
         m = e.magnitudes[1] * max(float(screened.get("scale", 1.0)), MIN_SCREEN_SCALE)
         scored = []
         for choice in options:
             mk = clip_magnitude(name, shapes.magnitude_at_choice(name, m, held, choice))
-            c, _ = self._trial(name, s0, x0, {**choice, e.magnitude: mk}, name, self.jac,
-                               self._magnitude_prior(name, mk) + self.shape_prior(name, shape))
+            c, _ = self._trial(name, s0, x0, {**choice, e.magnitude: mk}, label or name,
+                               self.jac if jac is None else jac,
+                               self._magnitude_prior(name, mk) + self.shape_prior(name, shape) + extra)
             scored.append((choice, -0.5 * c))
         if not any(math.isfinite(z) for _, z in scored):  # every choice failed: the set's own, as the screen ran it
             return shape, shapes.choice_log_mass(name, held, scored)

@@ -28,14 +28,16 @@ def pair_label(first: str, second: str) -> str:
 
 def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
     """{candidate: (log evidence gain [nats] of adding it to the leading fit, the shape values
-    of its best screened variant)} for every candidate but ``lead``. ``fit``: the leading
+    of its best screened variant, that variant's linear scale on the typical magnitude)} for every
+    candidate but ``lead``. ``fit``: the leading
     single fit (system, factors ``x``, training coefficients ``y``); ``namer``: the naming
     step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the learning rate the
     likelihood is tempered by. The gain sums the candidate's screened shapes with their prior
     weights (shapes.variants), like the single screen; it is -inf, with the parameter set's
     own shape ({}), when every run of the candidate on top of the leading fit failed or the
     parameter set refuses it there. Failed runs are recorded against the candidate, as its
-    own screen's are: the effect is what made the model fail there."""
+    own screen's are: the effect is what made the model fail there. A failed candidate's scale
+    is 1."""
     k = math.sqrt(eta)
     jac = namer.jac_of(fit)
     nu = namer.lik.profile(fit["y"], namer.train)[1]
@@ -60,20 +62,43 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
                 continue
             with namer.lik.using(nu):
                 d = namer.w(y - fit["y"])
-            z = selection.linear_screen_evidence(k * r, k * jac, k * d, fit["x"], PRIOR_LOG_SD,
-                                                 min_scale=MIN_SCREEN_SCALE)[0]
-            scored.append((vals, lw + z))
-        total = shapes.logsumexp(z for _, z in scored)
-        best = max(scored, key=lambda t: t[1])[0] if math.isfinite(total) else {}
-        out[name] = (total - z_lead, best)
+            z, scale = selection.linear_screen_evidence(k * r, k * jac, k * d, fit["x"], PRIOR_LOG_SD,
+                                                        min_scale=MIN_SCREEN_SCALE)[:2]
+            scored.append((vals, lw + z, scale))
+        total = shapes.logsumexp(t[1] for t in scored)
+        best = max(scored, key=lambda t: t[1]) if math.isfinite(total) else ({}, -math.inf, 1.0)
+        out[name] = (total - z_lead, best[0], best[2])
     return out
+
+
+def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label: str, extra: float) -> tuple:
+    """(shape values, log prior mass of its discrete choices) the pair holds its second effect
+    ``second`` at, on top of the leading fit ``lead_fit``.
+
+    An effect the screen reads over a shape grid (the short springs: clearance, then count) takes
+    both from what the leading fit leaves: its best screened clearance on top of that fit
+    (``gained``, from :func:`gains`) and the count :meth:`Namer.choose
+    <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at that variant's
+    scale (failures recorded against the pair ``label``; ``extra``: the first effect's prior
+    terms). Its own single fit, where it had one, took the leading effect's signature as well,
+    so its shape would be read from that. Any other effect keeps the shape its single fit
+    reached (``models``), or, not fitted alone, its best screened shape; a discrete choice not
+    chosen by runs takes its equal prior share."""
+    g, screened, scale = gained.get(second, (-math.inf, {}, 1.0))
+    if math.isfinite(g) and (second in shapes.SCREEN_FACTORS or second in shapes.SCREEN_CHOICES):
+        start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
+        return namer.choose(second, {"start": start, "shape": screened, "scale": scale},
+                            jac=namer.jac_of(lead_fit), label=label, extra=extra)
+    if second in models:
+        return namer.shape_values(second, models[second]["system"]), models[second].get("log_mass", 0.0)
+    return screened, -math.log(max(1, len(shapes.choices(second))))
 
 
 def choose(gained: dict, fallback: str | None) -> str | None:
     """The partner: the candidate of highest gain (the first listed on ties); ``fallback`` when
     no candidate has a finite gain."""
-    finite = [(n, g) for n, (g, _) in gained.items() if math.isfinite(g)]
+    finite = [(n, g) for n, (g, *_) in gained.items() if math.isfinite(g)]
     return max(finite, key=lambda t: t[1])[0] if finite else fallback  # max keeps the first of equals
 
 
-__all__ = ["pair_label", "gains", "choose"]
+__all__ = ["pair_label", "gains", "shape", "choose"]

@@ -160,7 +160,7 @@ def test_the_diagnosis_tries_the_lead_with_the_partner_the_screen_chose(monkeypa
     d = dg.diagnose(F.campaign([F.point(*p) for p in F.POINTS]), workers=1, candidates=cands)
     assert set(seen["gains"]) == set(cands) - {seen["lead"]}
     # the gains are reported, a failed screen as null
-    reported = {n: (g if math.isfinite(g) else None) for n, (g, _) in seen["gains"].items()}
+    reported = {n: (g if math.isfinite(g) else None) for n, (g, *_) in seen["gains"].items()}
     assert d.likelihood["pair_partners"] == reported
     assert 0.0 < seen["eta"] <= 1.0
     label = partner.pair_label(seen["lead"], "spring_preload")
