@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from dampersim import costs
-from dampersim.discrepancy import drive, naming, partner, selection
+from dampersim.discrepancy import drive, naming, partner, selection, shapes
 from dampersim.discrepancy.effects import info
 from dampersim.discrepancy.fitting import PRIOR_LOG_SD
 from dampersim.discrepancy.likelihood import Likelihood
@@ -176,3 +176,82 @@ def test_the_diagnosis_tries_the_lead_with_the_partner_the_screen_chose(monkeypa
     assert next(r for r in d.ranking if r["effect"] == "spring_preload")["parameters"] == {}
     # the partner screen is inside the runs the cost model bounds
     assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))
+
+
+#: the short springs' count seen apart from count x stiffness: what only real runs at each count
+#: tell (the linear screen scales a signature as a whole)
+SIG_COUNT = RNG.normal(size=SHAPE) * (1 + 1j)
+
+
+def _toy_counted(seen):
+    """The linear toy with the short springs' signature split into the engaged rate
+    (count x stiffness, what the screen reads) and a part that follows the count alone;
+    ``seen`` gets, for every system run, whether the leading effect was switched on."""
+
+    def toy(system):
+        seen.append(getattr(system.effects, LEAD).enabled)
+        y = 10.0 + SENS @ log_factors(system)
+        for n in CANDIDATES:
+            eff = getattr(system.effects, n)
+            if not eff.enabled:
+                continue
+            scale = getattr(eff, info(n).magnitude) / info(n).magnitudes[1]
+            if n == OTHER:
+                y = y + SIG[n] * scale * eff.count / 2.0 + 0.5 * SIG_COUNT * (eff.count - 2)
+            else:
+                y = y + SIG[n] * scale
+        return y
+
+    return toy
+
+
+def test_the_short_springs_as_partner_take_their_count_from_runs_on_top_of_the_lead(monkeypatch):
+    # the truth: the lead plus one short spring at twice the typical stiffness (the set's count
+    # is 2, at the same engaged rate); the count is read by runs on top of the lead's fit, so the
+    # truth's count wins, and each of those runs carries the lead. A choice left at the set's
+    # count, or read without the lead, fails one of the two assertions
+    seen = []
+    toy = _toy_counted(seen)
+    patch_runs(monkeypatch, toy, lambda runner, s: False)
+    truth = naming.with_effect(naming.with_effect(BASE, LEAD, {"inertia": 0.001}), OTHER,
+                               {"stiffness": 480.0, "count": 1})
+    meas = toy(truth)
+    lik = Likelihood(meas, np.full(meas.shape, SD), [100.0] * len(POINTS), drive.ORDERS)
+    train = list(range(len(POINTS)))
+    jac = np.column_stack([lik.vec(SENS[..., k], train) for k in range(6)])
+    starts = {"calibrated": (BASE, np.zeros(6), None), "estimated": (BASE, np.zeros(6), None)}
+    namer = naming.Namer(SimpleNamespace(), lik, train, POINTS, jac, starts, {n: {} for n in CANDIDATES})
+    lead = naming.with_effect(BASE, LEAD, {"inertia": 0.001})
+    fit = {"system": lead, "x": np.zeros(6), "y": toy(lead)}
+    gained = partner.gains(namer, LEAD, fit, CANDIDATES)
+    assert partner.choose(gained, fallback=None) == OTHER
+    del seen[:]
+    label = partner.pair_label(LEAD, OTHER)
+    got, mass = partner.shape(namer, OTHER, fit, gained, {}, label, 0.0)
+    assert got["count"] == 1
+    assert got["clearance"] == gained[OTHER][1]["clearance"]  # the screen's best clearance on top of the lead
+    assert len(seen) == len(shapes.choices(OTHER)) * len(POINTS) and all(seen)  # one run per count and point
+    # the other counts explain far less: the mass is the equal share, -log 3, to rounding
+    assert mass == pytest.approx(-math.log(3.0), abs=1e-6)
+
+
+def test_a_partner_without_a_shape_grid_keeps_its_single_fit_s_shape(monkeypatch):
+    namer = _namer(monkeypatch)
+    fit = _lead_fit(namer)
+    clutch = naming.with_effect(BASE, "clutch_slip", {"capacity": 600.0, "slip_speed": 0.2, "viscous": 40.0})
+    models = {"clutch_slip": {"system": clutch, "log_mass": 0.0}}
+    gained = {"clutch_slip": (3.0, {}, 1.2)}
+    got, mass = partner.shape(namer, "clutch_slip", fit, gained, models, "x", 0.0)
+    assert got == {"slip_speed": 0.2, "viscous": 40.0} and mass == 0.0
+    # not fitted alone: the screen's shape (the set's own for an effect without a grid)
+    assert partner.shape(namer, "clutch_slip", fit, gained, {}, "x", 0.0) == ({}, 0.0)
+
+
+def test_the_short_springs_fall_back_to_their_single_fit_when_their_screen_failed(monkeypatch):
+    namer = _namer(monkeypatch)
+    fit = _lead_fit(namer)
+    own = naming.with_effect(BASE, OTHER, {"stiffness": 300.0, "count": 3, "clearance": 0.08})
+    models = {OTHER: {"system": own, "log_mass": -0.4}}
+    got, mass = partner.shape(namer, OTHER, fit, {OTHER: (-math.inf, {}, 1.0)}, models, "x", 0.0)
+    assert got == {"clearance": 0.08, "count": 3} and mass == -0.4
+    assert not namer.calls  # no count runs
