@@ -275,11 +275,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         shortlisted = [n for n in order if math.isfinite(screen[n]["rel_log_evidence"])][:shortlist] or order[:1]
         held_pts = [pts[i] for i in held]
         # the systematic changes at the calibrated set, standardised: the discretisation check's,
-        # and one standard uncertainty along each direction the calibration cannot follow (half
-        # the change from its move down to its move up)
-        unc = terms_cal.uncalibrated[:, train]
-        bias_w = np.array([lik.vec(np.nan_to_num(d), train) for d in [terms_cal.coarse[train] - terms_cal.y[train],
-                                                                         *(0.5 * (unc[0::2] - unc[1::2]))]])
+        # and one standard uncertainty along each direction the calibration cannot follow
+        bias_w = np.array([lik.vec(np.nan_to_num(d), train) for d in terms_cal.systematic_changes(train)])
         models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
                            "columns": [], "nuisance": lik.profile(y_tr, train)[1], "start": "calibrated"}}
         models["none"]["log_z"], models["none"]["cov"] = namer.evidence(models["none"], [], bias_w)

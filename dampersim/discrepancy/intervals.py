@@ -139,10 +139,11 @@ def effects_of(label, fit, jack_var=None) -> list:
 
 
 def spread(fit, variance) -> dict:
-    """{effect: {parameter: sqrt(variance / Laplace variance)}} of a fitted model's interval
+    """{effect: {parameter: sqrt(variance / the covariance's variance)}} of a fitted model's interval
     parameters, for :func:`jackknife`'s variance (above 1: the jackknife set the width) or its
     expectation with the noise alone; None where there is no jackknife. A magnitude the ramps
-    sized is left out: its interval is the ramps'."""
+    sized is left out: its interval is the ramps'. The covariance is the Laplace one plus the
+    systematic shifts (:meth:`~dampersim.discrepancy.naming.Namer.evidence`)."""
     cov, out = fit.get("cov"), {}
     if cov is None or variance is None:
         return out
@@ -158,8 +159,8 @@ def reported_shapes(name, fit, n_effects: int) -> dict:
     """The shape values a single effect's model holds: its fitted shapes (where the shape step
     left them, or where the fit started when the step was refused) and its discrete choices
     (:data:`~dampersim.discrepancy.shapes.SCREEN_CHOICES`). A pair holds both effects' shapes
-    (the first at its single fit's, the second at its own single fit's or its best screened
-    shape): their values as the pair's parameter set has them, none of them fitted."""
+    (the first at its single fit's, the second at :func:`~dampersim.discrepancy.partner.shape`'s):
+    their values as the pair's parameter set has them, none of them fitted."""
     eff = getattr(fit["system"].effects, name)
     choices = {q: getattr(eff, q) for q in shapes.SCREEN_CHOICES.get(name, {})}
     if n_effects != 1:

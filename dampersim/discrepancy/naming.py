@@ -507,8 +507,10 @@ class Namer:
         (standardised changes of the training coefficients, one per row: the discretisation
         check's, and one standard uncertainty along each direction the calibration cannot
         follow), the square of the parameter shift that change would cause if it were all
-        systematic: such an error moves the fitted parameters without adding scatter, and an
-        interval (or a ramp's prediction) from the scatter alone would not cover it. eta: the
+        systematic: such an error moves every point's fit together, which the cells' own
+        uncertainty (carrying the same terms as independent scatter) does not describe, so an
+        interval or a ramp's prediction from the scatter alone can miss it. Counted both ways,
+        the terms err wide on purpose. eta: the
         likelihood's learning rate (:func:`~dampersim.discrepancy.selection.learning_rate`)."""
         jac, prec = self._evidence_columns(fit, names)
         post = selection.posterior_covariance(jac, prec, eta)

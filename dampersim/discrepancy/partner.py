@@ -28,8 +28,8 @@ def pair_label(first: str, second: str) -> str:
 
 def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
     """{candidate: (log evidence gain [nats] of adding it to the leading fit, the shape values
-    of its best screened variant, that variant's linear scale on the typical magnitude)} for every
-    candidate but ``lead``. ``fit``: the leading
+    of its best screened variant, that variant's linear scale on the typical magnitude, read at the
+    learning rate like the gain)} for every candidate but ``lead``. ``fit``: the leading
     single fit (system, factors ``x``, training coefficients ``y``); ``namer``: the naming
     step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the learning rate the
     likelihood is tempered by. The gain sums the candidate's screened shapes with their prior
@@ -54,11 +54,11 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
             try:
                 system = with_effect(fit["system"], name, {**vals, e.magnitude: e.magnitudes[1]})
             except ParameterError:  # refused beside the leading effect: not run
-                scored.append((vals, -math.inf))
+                scored.append((vals, -math.inf, 1.0))
                 continue
             y, failed = namer.runs(system, name)
             if failed:
-                scored.append((vals, -math.inf))
+                scored.append((vals, -math.inf, 1.0))
                 continue
             with namer.lik.using(nu):
                 d = namer.w(y - fit["y"])
@@ -66,7 +66,7 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
                                                         min_scale=MIN_SCREEN_SCALE)[:2]
             scored.append((vals, lw + z, scale))
         total = shapes.logsumexp(t[1] for t in scored)
-        best = max(scored, key=lambda t: t[1]) if math.isfinite(total) else ({}, -math.inf, 1.0)
+        best = max(scored, key=lambda t: t[1]) if math.isfinite(total) else ({}, -math.inf, 1.0)  # the set's own
         out[name] = (total - z_lead, best[0], best[2])
     return out
 
@@ -79,8 +79,11 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     both from what the leading fit leaves: its best screened clearance on top of that fit
     (``gained``, from :func:`gains`) and the count :meth:`Namer.choose
     <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at that variant's
-    scale (failures recorded against the pair ``label``; ``extra``: the first effect's prior
-    terms). Its own single fit, where it had one, took the leading effect's signature as well,
+    scale (read at the learning rate, so nearer the typical magnitude than an untempered one:
+    it only sets where the counts are compared, the fit then searches the magnitude), failures
+    recorded against the pair ``label``; ``extra``: the first effect's prior terms, the same for
+    every count. When their partner screen failed (the fallback partner) they are treated as
+    below. Its own single fit, where it had one, took the leading effect's signature as well,
     so its shape would be read from that. Any other effect keeps the shape its single fit
     reached (``models``), or, not fitted alone, its best screened shape; a discrete choice not
     chosen by runs takes its equal prior share."""

@@ -243,8 +243,10 @@ def test_a_partner_without_a_shape_grid_keeps_its_single_fit_s_shape(monkeypatch
     gained = {"clutch_slip": (3.0, {}, 1.2)}
     got, mass = partner.shape(namer, "clutch_slip", fit, gained, models, "x", 0.0)
     assert got == {"slip_speed": 0.2, "viscous": 40.0} and mass == 0.0
-    # not fitted alone: the screen's shape (the set's own for an effect without a grid)
-    assert partner.shape(namer, "clutch_slip", fit, gained, {}, "x", 0.0) == ({}, 0.0)
+    # not fitted alone: the screen's shape, passed through without runs
+    screened = {"clutch_slip": (3.0, {"slip_speed": 0.3}, 1.2)}
+    assert partner.shape(namer, "clutch_slip", fit, screened, {}, "x", 0.0) == ({"slip_speed": 0.3}, 0.0)
+    assert not namer.calls
 
 
 def test_the_short_springs_fall_back_to_their_single_fit_when_their_screen_failed(monkeypatch):
@@ -255,3 +257,32 @@ def test_the_short_springs_fall_back_to_their_single_fit_when_their_screen_faile
     got, mass = partner.shape(namer, OTHER, fit, {OTHER: (-math.inf, {}, 1.0)}, models, "x", 0.0)
     assert got == {"clearance": 0.08, "count": 3} and mass == -0.4
     assert not namer.calls  # no count runs
+
+
+def test_the_diagnosis_holds_a_short_spring_partner_at_the_shape_read_on_top_of_the_lead(monkeypatch):
+    """The pair step's wiring with the short springs as the partner, on the stand-in model of
+    tests.discrepancy.fake_rig: the pair holds the clearance and count partner.shape returned
+    (listed with the pair), and the runs stay inside the cost model's bound, which counts the
+    count choice."""
+    from dampersim.discrepancy import diagnose as dg
+    from tests.discrepancy import fake_rig as F
+
+    seen = {}
+    real_shape = partner.shape
+
+    def shape(*args):
+        seen["shape"] = real_shape(*args)
+        return seen["shape"]
+
+    monkeypatch.setattr(partner, "shape", shape)
+    monkeypatch.setattr(partner, "choose", lambda gained, fallback: OTHER)
+    monkeypatch.setattr(dg, "noise_level", lambda dof: 0.1)  # every held-out misfit lies above it
+    monkeypatch.setattr(drive, "simulate_point", F.fake_model(None))
+    cands = ["clutch_slip", "turbine_drag", "pendulum_absorber", OTHER]
+    d = dg.diagnose(F.campaign([F.point(*p) for p in F.POINTS]), workers=1, candidates=cands)
+    held, mass = seen["shape"]
+    assert set(held) == {"clearance", "count"} and -math.log(3.0) - 1e-9 <= mass <= 0.0
+    row = next(r for r in d.ranking if "+" in r["effect"] and OTHER in r["effect"])
+    assert row["parameters"]["count"] == held["count"]
+    assert row["parameters"]["clearance"] == pytest.approx(held["clearance"], rel=1e-12)
+    assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))
