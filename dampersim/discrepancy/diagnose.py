@@ -274,9 +274,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         # better than "none": a slightly slipping clutch); the others keep the screen's evidence
         shortlisted = [n for n in order if math.isfinite(screen[n]["rel_log_evidence"])][:shortlist] or order[:1]
         held_pts = [pts[i] for i in held]
-        # the systematic changes at the calibrated set, standardised: the discretisation check's,
-        # and one standard uncertainty along each direction the calibration cannot follow
-        bias_w = np.array([lik.vec(np.nan_to_num(d), train) for d in terms_cal.systematic_changes(train)])
+        # the discretisation check at the calibrated set, standardised
+        bias_w = lik.vec(np.nan_to_num(terms_cal.coarse[train] - terms_cal.y[train]), train)
         models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
                            "columns": [], "nuisance": lik.profile(y_tr, train)[1], "start": "calibrated"}}
         models["none"]["log_z"], models["none"]["cov"] = namer.evidence(models["none"], [], bias_w)

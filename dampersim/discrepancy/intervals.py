@@ -139,11 +139,10 @@ def effects_of(label, fit, jack_var=None) -> list:
 
 
 def spread(fit, variance) -> dict:
-    """{effect: {parameter: sqrt(variance / the covariance's variance)}} of a fitted model's interval
+    """{effect: {parameter: sqrt(variance / Laplace variance)}} of a fitted model's interval
     parameters, for :func:`jackknife`'s variance (above 1: the jackknife set the width) or its
     expectation with the noise alone; None where there is no jackknife. A magnitude the ramps
-    sized is left out: its interval is the ramps'. The covariance is the Laplace one plus the
-    systematic shifts (:meth:`~dampersim.discrepancy.naming.Namer.evidence`)."""
+    sized is left out: its interval is the ramps'."""
     cov, out = fit.get("cov"), {}
     if cov is None or variance is None:
         return out

@@ -68,16 +68,6 @@ class ModelTerms:
         calibration cannot follow [N m]."""
         return np.sqrt(0.5 * np.sum(np.abs(self.uncalibrated - self.y) ** 2, axis=0))
 
-    def systematic_changes(self, rows) -> np.ndarray:
-        """The changes at ``rows`` the fitted parameters' covariance carries as systematic
-        (:meth:`~dampersim.discrepancy.naming.Namer.evidence`) [N m], shape (1 + directions,
-        rows, orders): the discretisation check's, coarse - y, then for each direction the
-        calibration cannot follow half the change from its move down to its move up, one
-        standard uncertainty's change (the moves are one up and one down,
-        :func:`~dampersim.discrepancy.fitting.uncalibrated_systems`)."""
-        unc = self.uncalibrated[:, rows]
-        return np.array([self.coarse[rows] - self.y[rows], *(0.5 * (unc[0::2] - unc[1::2]))])
-
     def failed_rows(self) -> set:
         """Rows at which any of the runs failed: a recorded error, or a non-finite cell of the
         set's own coefficients or of any check (also after :meth:`at`, which drops the errors)."""

@@ -503,21 +503,17 @@ class Namer:
         "none" has none). The columns are ordered calibration factors, magnitudes, shapes,
         channel gain and delay.
 
-        The covariance is the Laplace posterior covariance plus, for each row of ``bias``
-        (standardised changes of the training coefficients, one per row: the discretisation
-        check's, and one standard uncertainty along each direction the calibration cannot
-        follow), the square of the parameter shift that change would cause if it were all
-        systematic: such an error moves every point's fit together, which the cells' own
-        uncertainty (carrying the same terms as independent scatter) does not describe, so an
-        interval or a ramp's prediction from the scatter alone can miss it. Counted both ways,
-        the terms err wide on purpose. eta: the
+        The covariance is the Laplace posterior covariance plus, with ``bias`` (the
+        standardised change of the training coefficients under the discretisation check),
+        the square of the parameter shift that change would cause if it were all
+        systematic: the model's own discretisation error moves a fitted magnitude without
+        adding scatter, and an interval from the scatter alone would not cover it. eta: the
         likelihood's learning rate (:func:`~dampersim.discrepancy.selection.learning_rate`)."""
         jac, prec = self._evidence_columns(fit, names)
-        post = selection.posterior_covariance(jac, prec, eta)
-        cov = post.copy()
-        for b in ([] if bias is None else np.atleast_2d(bias)):
-            shift = eta * (post @ (jac.T @ b))
-            cov += np.outer(shift, shift)
+        cov = selection.posterior_covariance(jac, prec, eta)
+        if bias is not None:
+            shift = eta * (cov @ (jac.T @ bias))
+            cov = cov + np.outer(shift, shift)
         loss = self.data_loss(fit["y"], fit["nuisance"])
         # plus the log prior mass of the discrete shapes the screen chose (0 for most effects)
         log_z = selection.log_evidence(fit["cost"], jac, prec, eta, loss, self._offset(fit, names))

@@ -42,22 +42,6 @@ def test_the_uncalibrated_term_sums_the_directions_mean_squares():
     assert t.model_change == pytest.approx(np.full((1, ORDERS), 0.1), rel=1e-12)
 
 
-def test_the_systematic_changes_pair_each_direction_s_up_and_down_moves():
-    # the covariance's systematic rows (Namer.evidence): the discretisation check's change, then
-    # half of up minus down per direction (the moves are one standard uncertainty each way), at
-    # the rows asked. The directions differ in size and sign and the second is not symmetric, so a
-    # wrong pairing (direction 1's up against direction 2's up) gives other rows
-    y = np.array([np.full(ORDERS, 5.0 + 0j), np.full(ORDERS, 7.0 + 0j)])
-    unc = np.stack([y + 0.3, y - 0.3, y + 0.4j + 0.1, y - 0.4j + 0.1])
-    t = _terms(y, y, y, unc)
-    got = t.systematic_changes([1])
-    assert got.shape == (3, 1, ORDERS)
-    # exact: differences and halves of the same numbers
-    np.testing.assert_allclose(got[0], np.full((1, ORDERS), 0.1), atol=1e-12)
-    np.testing.assert_allclose(got[1], np.full((1, ORDERS), 0.3), atol=1e-12)
-    np.testing.assert_allclose(got[2], np.full((1, ORDERS), 0.4j), atol=1e-12)
-
-
 def test_failed_rows_are_filled_from_the_other_measurement_and_at_picks_rows():
     # first's rows differ: its input term is 0.5, 1.0 and 1.5 N m in rows 0, 1 and 2
     step = np.array([[0.5], [1.0], [1.5]]) * np.ones((3, ORDERS))

@@ -171,28 +171,3 @@ def test_with_weak_data_the_refit_lands_on_the_linear_models_posterior_mode(name
     # the channels' gain and delay, fitted with every trial (the analytic mode leaves them out),
     # move the answer by well under a tenth of that
     np.testing.assert_allclose(got, mode, atol=0.1 * shrink)
-
-
-def test_each_systematic_change_widens_the_covariance_by_the_shift_it_would_cause(namer):
-    # Namer.evidence: every row of ``bias`` (the discretisation check's change, one standard
-    # uncertainty along each direction the calibration cannot follow) adds the outer product of
-    # the parameter shift it causes, each read from the Laplace covariance alone
-    fit = namer.refit(NAME, _first_fit(namer, 0.0016))
-    fit["nuisance"] = namer.lik.profile(fit["y"], namer.train)[1]
-    fit["columns"], fit["effects"] = [fit["column"]], [NAME]
-    jac, _ = namer._evidence_columns(fit, [NAME])
-    log_z, post = namer.evidence(fit, [NAME])
-    rng = np.random.default_rng(3)
-    bias = rng.standard_normal((3, jac.shape[0]))
-    z_b, cov = namer.evidence(fit, [NAME], bias)
-    shifts = [post @ (jac.T @ b) for b in bias]
-    np.testing.assert_allclose(cov, post + sum(np.outer(s, s) for s in shifts), rtol=1e-10, atol=1e-15)
-    assert z_b == log_z  # the evidence itself does not read them
-    np.testing.assert_allclose(namer.evidence(fit, [NAME], bias[0])[1], post + np.outer(shifts[0], shifts[0]),
-                               rtol=1e-10, atol=1e-15)
-    # a change the magnitude's own column makes (0.05 in log magnitude) is read as that shift of
-    # the magnitude: its variance grows by 0.05^2 to within the prior's pull (the data give the log
-    # magnitude a variance of 5e-5 against the prior's 1, so the pull is about 5e-5 of the shift)
-    k = len(CALIBRATION)
-    grown = namer.evidence(fit, [NAME], 0.05 * jac[:, k])[1][k, k] - post[k, k]
-    assert grown == pytest.approx(0.05 ** 2, rel=1e-3)
