@@ -42,11 +42,13 @@ def _toy(system):
     return y
 
 
-def _namer(monkeypatch, fails=lambda runner, s: False):
+def _namer(monkeypatch, fails=lambda runner, s: False, toy=_toy, partner_values=(TRUE_PARTNER, {"force": 10.0})):
+    """A Namer on ``toy``'s runs, measured at the lead (inertia 0.001) plus ``partner_values``
+    (effect, its values)."""
     calls = []
-    patch_runs(monkeypatch, _toy, fails, calls)
-    truth = naming.with_effect(naming.with_effect(BASE, LEAD, {"inertia": 0.001}), TRUE_PARTNER, {"force": 10.0})
-    meas = _toy(truth)
+    patch_runs(monkeypatch, toy, fails, calls)
+    truth = naming.with_effect(naming.with_effect(BASE, LEAD, {"inertia": 0.001}), *partner_values)
+    meas = toy(truth)
     lik = Likelihood(meas, np.full(meas.shape, SD), [100.0] * len(POINTS), drive.ORDERS)
     train = list(range(len(POINTS)))
     jac = np.column_stack([lik.vec(SENS[..., k], train) for k in range(6)])
@@ -212,15 +214,7 @@ def test_the_short_springs_as_partner_take_their_count_from_runs_on_top_of_the_l
     # count, or read without the lead, fails one of the two assertions
     seen = []
     toy = _toy_counted(seen)
-    patch_runs(monkeypatch, toy, lambda runner, s: False)
-    truth = naming.with_effect(naming.with_effect(BASE, LEAD, {"inertia": 0.001}), OTHER,
-                               {"stiffness": 480.0, "count": 1})
-    meas = toy(truth)
-    lik = Likelihood(meas, np.full(meas.shape, SD), [100.0] * len(POINTS), drive.ORDERS)
-    train = list(range(len(POINTS)))
-    jac = np.column_stack([lik.vec(SENS[..., k], train) for k in range(6)])
-    starts = {"calibrated": (BASE, np.zeros(6), None), "estimated": (BASE, np.zeros(6), None)}
-    namer = naming.Namer(SimpleNamespace(), lik, train, POINTS, jac, starts, {n: {} for n in CANDIDATES})
+    namer = _namer(monkeypatch, toy=toy, partner_values=(OTHER, {"stiffness": 480.0, "count": 1}))
     lead = naming.with_effect(BASE, LEAD, {"inertia": 0.001})
     fit = {"system": lead, "x": np.zeros(6), "y": toy(lead)}
     gained = partner.gains(namer, LEAD, fit, CANDIDATES)
