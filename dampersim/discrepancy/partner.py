@@ -76,17 +76,16 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     ``second`` at, on top of the leading fit ``lead_fit``.
 
     An effect the screen reads over a shape grid (the short springs: clearance, then count) takes
-    both from what the leading fit leaves: its best screened clearance on top of that fit
+    both from what the leading fit leaves, since its own single fit, where it had one, took up
+    the leading effect's signature as well: its best screened clearance on top of that fit
     (``gained``, from :func:`gains`) and the count :meth:`Namer.choose
     <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at that variant's
     scale (read at the learning rate, so nearer the typical magnitude than an untempered one:
     it only sets where the counts are compared, the fit then searches the magnitude), failures
     recorded against the pair ``label``; ``extra``: the first effect's prior terms, the same for
-    every count. When their partner screen failed (the fallback partner) they are treated as
-    below. Its own single fit, where it had one, took the leading effect's signature as well,
-    so its shape would be read from that. Any other effect keeps the shape its single fit
-    reached (``models``), or, not fitted alone, its best screened shape; a discrete choice not
-    chosen by runs takes its equal prior share."""
+    every count. Any other effect, and one whose partner screen failed (the fallback partner),
+    keeps the shape its single fit reached (``models``), or, not fitted alone, its best screened
+    shape; a discrete choice not chosen by runs takes its equal prior share."""
     g, screened, scale = gained.get(second, (-math.inf, {}, 1.0))
     if math.isfinite(g) and (second in shapes.SCREEN_FACTORS or second in shapes.SCREEN_CHOICES):
         start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
