@@ -327,12 +327,14 @@ DIAGNOSIS_SCREEN_EXTRA = 4 - 1
 #: 1 to 3 springs (discrepancy.shapes.SCREEN_CHOICES; naming.Namer.choose)
 DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
-#: a pair's second magnitude: grid + its continuation + refinement + verification + derivative
-#: (the second effect itself is chosen by screening every other candidate once on top of the
-#: leading fit, discrepancy.partner.gains, the short springs at DIAGNOSIS_SCREEN_EXTRA more
-#: shapes, and their count by DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape: counted
-#: apart in :func:`diagnosis_runs`)
-DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + 1
+#: a pair's second magnitude: grid + its continuation + refinement + derivative (on top of the
+#: leading fit the search's own run at the best magnitude is its verification), then the first
+#: magnitude again on top of it: refinement near its single fit's value + the two magnitudes'
+#: derivatives (discrepancy.partner.first_again). The second effect itself is chosen by
+#: screening every other candidate once on top of the leading fit, discrepancy.partner.gains,
+#: the short springs at DIAGNOSIS_SCREEN_EXTRA more shapes, and their count by
+#: DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape: counted apart in :func:`diagnosis_runs`
+DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + (8 + 1 + 1)
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration the six factors' and the magnitude's sensitivities and the step

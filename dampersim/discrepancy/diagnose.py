@@ -351,7 +351,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 second = partner.choose(gained, max((n for n in singles if n != best_single),
                                                     key=lambda n: models[n]["log_z"]))
                 report(0.79, f"name: trying the pair {best_single} + {second}")
-                # the first effect stays as fitted: its magnitude's and shapes' prior terms count
+                # the first effect held as fitted alone while the second is fitted (its prior terms count)
                 prior_1 = namer._magnitude_prior(best_single, f1["m"]) + namer.shape_prior(
                     best_single, {**f1.get("shape_start", {}), **f1.get("shapes", {})})
                 label = partner.pair_label(best_single, second)
@@ -359,12 +359,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 shape_2, mass_2 = partner.shape(namer, second, f1, gained, models, label, prior_1)
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
-                if fit is not None:
+                if fit is not None:  # then the first magnitude again, on top of the second
+                    fit = partner.first_again(namer, best_single, f1, fit, second, shape_2, label)
                     fit["log_mass"] = f1.get("log_mass", 0.0) + mass_2
                     fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]
-                    fit["columns"] = [f1["column"], fit["column"]]
-                    fit["m_first"] = f1["m"]
+                    fit["columns"] = [fit.pop("first_column", f1["column"]), fit["column"]]
+                    fit.setdefault("m_first", f1["m"])
                     finish(label, fit, [best_single, second])
                     pairs.append(label)
                     eta = temper()  # the pair may fit better than any single effect

@@ -191,9 +191,9 @@ class Namer:
         scored = []
         for choice in options:
             mk = clip_magnitude(name, shapes.magnitude_at_choice(name, m, held, choice))
-            c, _ = self._trial(name, s0, x0, {**choice, e.magnitude: mk}, label or name,
-                               self.jac if jac is None else jac,
-                               self._magnitude_prior(name, mk) + self.shape_prior(name, shape) + extra)
+            c, *_ = self._trial(name, s0, x0, {**choice, e.magnitude: mk}, label or name,
+                                self.jac if jac is None else jac,
+                                self._magnitude_prior(name, mk) + self.shape_prior(name, shape) + extra)
             scored.append((choice, -0.5 * c))
         if not any(math.isfinite(z) for _, z in scored):  # every choice failed: the set's own, as the screen ran it
             return shape, shapes.choice_log_mass(name, held, scored)
@@ -236,19 +236,21 @@ class Namer:
         """The objective's prior term of effect ``name``'s continuous shapes at ``values``."""
         return shapes.prior_term(name, values, self.library_effect(name))
 
-    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None):
-        """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple
-        (system, x, y) to fit on top of another effect): a five-value grid, continued beyond an
-        end that holds its lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`),
-        a bounded search in log magnitude, a linearised re-calibration at every trial, then real runs against
-        the re-calibrated, the start's and the estimated factors. Returns a dict (cost, m, x,
-        y, system, column: the standardised derivative w.r.t. log m) or None when every
-        run failed. extra_prior: prior terms of parameters fitted before (a pair's first
-        effect); label: the model failed runs are recorded against (default ``name``); jac: the
-        factors' Jacobian of the linearised re-calibration (default the calibration's; a pair
-        on top of a re-calibrated effect passes that effect's, :meth:`jac_of`); shape: the effect's
-        shape values held through the fit (default the parameter set's), their prior term
-        counted in the objective."""
+    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None,
+            bracket=None):
+        """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple (system, x, y)
+        to fit on top of another effect): a five-value grid, continued beyond an end that holds its
+        lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`), or ``bracket`` (log
+        bounds, for a magnitude fitted again near a known value), a bounded search in log magnitude,
+        a linearised re-calibration at every trial, then real runs against the re-calibrated, the
+        start's and the estimated factors (on top of another effect the start's alone: the search's
+        own run at the best magnitude). Returns a dict (cost, m, x, y, system, column: the
+        standardised derivative w.r.t. log m) or None when every run failed. extra_prior: prior
+        terms of parameters fitted before (the pair's other effect); label: the model failed runs
+        are recorded against (default ``name``); jac: the factors' Jacobian of the linearised
+        re-calibration (default the calibration's; a pair on top of a re-calibrated effect passes
+        that effect's, :meth:`jac_of`); shape: the effect's shape values held through the fit
+        (default the parameter set's), their prior term counted in the objective."""
         from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
 
         e = info(name)
@@ -265,11 +267,11 @@ class Namer:
                                        self._magnitude_prior(name, m) + extra_prior)
             return tried[m]
 
-        lo, hi = grid_bracket(name, lambda m: at(m)[0])
+        lo, hi = grid_bracket(name, lambda m: at(m)[0]) if bracket is None else bracket
         with np.errstate(invalid="ignore", over="ignore"):
             minimize_scalar(lambda u: at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
                             options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})
-        m, (c_lin, x_fit) = min(tried.items(), key=lambda kv: kv[1][0])
+        m, (c_lin, x_fit, y_m) = min(tried.items(), key=lambda kv: kv[1][0])
         if not math.isfinite(c_lin):
             return None
         base = s0 if not isinstance(start, str) else None
@@ -278,7 +280,10 @@ class Namer:
         best = None
         for xo in options:
             sysx = _with_factors(self.starts, base, xo)
-            ys, failed = self.runs(with_effect(sysx, name, {**shape, e.magnitude: m}), label)
+            if base is not None:  # the search's run at m is this one: same set, same factors
+                ys, failed = y_m, False
+            else:
+                ys, failed = self.runs(with_effect(sysx, name, {**shape, e.magnitude: m}), label)
             c = math.inf if failed else self.cost(ys, xo, self._magnitude_prior(name, m) + extra_prior)
             if best is None or c < best["cost"]:
                 best = {"cost": c, "m": float(m), "x": xo, "y": ys, "base": base,
@@ -292,14 +297,15 @@ class Namer:
         return best
 
     def _trial(self, name, s0, x0, values, label, jac, extra) -> tuple:
-        """(objective, factors) of effect ``name`` at ``values`` on top of start system s0 with
-        factors x0, the better of two calibrations: x0 as it is (exact: the robust loss with the
-        nuisance fitted to this run) and a linearised re-calibration under the prior around
-        this run (Jacobian ``jac``, at the run's own nuisance; :meth:`fit` verifies its factors
-        by real runs). extra: the effect parameters' prior terms. (inf, x0) when the run fails."""
+        """(objective, factors, the run's coefficients) of effect ``name`` at ``values`` on top of
+        start system s0 with factors x0, the better of two calibrations: x0 as it is (exact: the
+        robust loss with the nuisance fitted to this run) and a linearised re-calibration under the
+        prior around this run (Jacobian ``jac``, at the run's own nuisance; :meth:`fit` verifies
+        its factors by real runs). extra: the effect parameters' prior terms. (inf, x0, None) when
+        the run fails."""
         ym, failed = self.runs(with_effect(s0, name, values), label)
         if failed:
-            return math.inf, x0
+            return math.inf, x0, None
         loss0, nu = self.lik.profile(ym, self.train)
         exact = loss0 + float(np.sum(x0 ** 2)) / PRIOR_LOG_SD ** 2 + extra
         with self.lik.using(nu):
@@ -307,7 +313,7 @@ class Namer:
         dx = _lstsq_bounded(jac, r, x0)
         rr = r - jac @ dx
         lin = float(rr @ rr) + self.lik.nuisance_prior(nu) + float(np.sum((x0 + dx) ** 2)) / PRIOR_LOG_SD ** 2 + extra
-        return (exact, x0) if exact <= lin else (lin, x0 + dx)
+        return (exact, x0, ym) if exact <= lin else (lin, x0 + dx, ym)
 
     def recalibrate(self, models, held_pts, bias=None) -> bool:
         """Give "no missing effect" the calibration factors every single-effect fit reached.

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import math
 
-from dampersim.discrepancy import selection, shapes
+from dampersim.discrepancy import fitting, selection, shapes
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.discrepancy.fitting import PRIOR_LOG_SD
-from dampersim.discrepancy.naming import MIN_SCREEN_SCALE
+from dampersim.discrepancy.naming import MIN_SCREEN_SCALE, fd_magnitude
 from dampersim.errors import ParameterError
 
 
@@ -96,6 +96,35 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     return screened, -math.log(max(1, len(shapes.choices(second))))
 
 
+def first_again(namer, first: str, lead_fit: dict, pair_fit: dict, second: str, shape_2: dict, label: str) -> dict:
+    """The pair's fit with its first effect's magnitude fitted again on top of the second.
+
+    The first effect's single fit took up part of the second's signature as well (the drag +
+    short springs case: the drag at 3.40 alone against the truth's 3), and the pair's fit of
+    its second magnitude held it there. Here that magnitude is searched once more within one
+    grid step of its single fit (:func:`~dampersim.discrepancy.fitting.near_bracket`), the
+    second effect held at its fitted magnitude and shape ``shape_2``, the first at its single
+    fit's shapes, the calibration factors re-linearised at every trial as in :meth:`Namer.fit
+    <dampersim.discrepancy.naming.Namer.fit>`; failed runs are recorded against the pair
+    ``label``. The result replaces ``pair_fit`` only when its objective (the same data, priors
+    and factors' terms) is lower; its two magnitude columns are then read at the new set (the
+    second's by one more run per training point). ``lead_fit``: the first effect's single fit;
+    ``pair_fit``: the pair's fit from :meth:`Namer.fit`, its ``m`` the second's magnitude."""
+    e2 = info(second)
+    shape_1 = {**lead_fit.get("shape_start", {}), **lead_fit.get("shapes", {})}
+    prior_2 = namer._magnitude_prior(second, pair_fit["m"]) + namer.shape_prior(second, shape_2)
+    again = namer.fit(first, (pair_fit["system"], pair_fit["x"], pair_fit["y"]), extra_prior=prior_2, label=label,
+                      jac=namer.jac_of(lead_fit), shape=shape_1, bracket=fitting.near_bracket(first, lead_fit["m"]))
+    if again is None or not again["cost"] < pair_fit["cost"]:
+        return pair_fit
+    moved, step = fd_magnitude(second, pair_fit["m"])
+    yd, failed = namer.runs(with_effect(again["system"], second, {e2.magnitude: moved}), label)
+    column_2 = 0.0 * again["column"] if failed else namer.w((yd - again["y"]) / step)
+    out = {**pair_fit, "cost": again["cost"], "y": again["y"], "system": again["system"], "column": column_2,
+           "first_column": again["column"], "m_first": again["m"]}
+    return out
+
+
 def choose(gained: dict, fallback: str | None) -> str | None:
     """The partner: the candidate of highest gain (the first listed on ties); ``fallback`` when
     no candidate has a finite gain."""
@@ -103,4 +132,4 @@ def choose(gained: dict, fallback: str | None) -> str | None:
     return max(finite, key=lambda t: t[1])[0] if finite else fallback  # max keeps the first of equals
 
 
-__all__ = ["pair_label", "gains", "shape", "choose"]
+__all__ = ["pair_label", "gains", "shape", "first_again", "choose"]
