@@ -34,11 +34,11 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 7.29e10 by
-:func:`diagnosis_cost`, is admitted, 2.8 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3383; the limit was 7e10 until the magnitude grid's
-continuation added 168 bounded runs, and the pair's partner screen added 80 more and the
-partner's count choice 24; it applies
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.45e10 by
+:func:`diagnosis_cost`, is admitted, 0.7 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3455; the limit was 7e10 until the magnitude grid's
+continuation added 168 bounded runs, and the pair's partner screen added 80 more, the
+partner's count choice 24 and the pair's second search of its first magnitude 72; it applies
 to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes

@@ -347,7 +347,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 # the partner explains what the first fit leaves: every other candidate screened on
                 # top of it (the second-best single fit when every such run failed)
                 gained = partner.gains(namer, best_single, f1, cands, eta)
-                partners = {n: (g if math.isfinite(g) else None) for n, (g, *_) in gained.items()}
+                partners = {n: (g.nats if math.isfinite(g.nats) else None) for n, g in gained.items()}
                 second = partner.choose(gained, max((n for n in singles if n != best_single),
                                                     key=lambda n: models[n]["log_z"]))
                 report(0.79, f"name: trying the pair {best_single} + {second}")

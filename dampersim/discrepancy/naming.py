@@ -163,11 +163,11 @@ class Namer:
             f["log_mass"] = log_mass
         return sorted(fits, key=lambda f: f["cost"])
 
-    def choose(self, name, screened, jac=None, label: str | None = None, extra: float = 0.0) -> tuple:
+    def choose(self, name, screened, jac=None, label: str | None = None, extra_prior: float = 0.0) -> tuple:
         """(shape, log prior mass) to fit an effect with discrete shapes at (shapes.SCREEN_CHOICES):
         each choice runs once from the screen's start (a key of starts, or (system, x, y) on top of
         another effect's fit, with that fit's ``jac``, failures recorded against ``label`` and
-        ``extra`` prior terms) and shape at the magnitude that keeps the
+        ``extra_prior``, the other effect's prior terms) and shape at the magnitude that keeps the
         screen's total (shapes.magnitude_at_choice: the same count x stiffness), and the lowest
         objective (:meth:`_trial`) wins. The linear screen scales a signature as a whole, so two
         springs at 360 N m/rad look to it as three at 240; below the clearance each short pair
@@ -193,7 +193,7 @@ class Namer:
             mk = clip_magnitude(name, shapes.magnitude_at_choice(name, m, held, choice))
             c, *_ = self._trial(name, s0, x0, {**choice, e.magnitude: mk}, label or name,
                                 self.jac if jac is None else jac,
-                                self._magnitude_prior(name, mk) + self.shape_prior(name, shape) + extra)
+                                self._magnitude_prior(name, mk) + self.shape_prior(name, shape) + extra_prior)
             scored.append((choice, -0.5 * c))
         if not any(math.isfinite(z) for _, z in scored):  # every choice failed: the set's own, as the screen ran it
             return shape, shapes.choice_log_mass(name, held, scored)

@@ -13,6 +13,7 @@ alone is the partner.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from dampersim.discrepancy import fitting, selection, shapes
 from dampersim.discrepancy.effects import info, with_effect
@@ -21,15 +22,23 @@ from dampersim.discrepancy.naming import MIN_SCREEN_SCALE, fd_magnitude
 from dampersim.errors import ParameterError
 
 
+class Gain(NamedTuple):
+    """One candidate's result in the partner screen (:func:`gains`)."""
+
+    nats: float  # log evidence gain of adding it to the leading fit; -inf: every run failed or refused
+    shape: dict  # the shape values of its best screened variant ({}: the parameter set's own)
+    scale: float  # that variant's linear scale on the typical magnitude, at the learning rate (1 when failed)
+
+
 def pair_label(first: str, second: str) -> str:
     """The posterior's key of a pair: the two effect names sorted, joined by "+"."""
     return "+".join(sorted([first, second]))
 
 
 def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
-    """{candidate: (log evidence gain [nats] of adding it to the leading fit, the shape values
-    of its best screened variant, that variant's linear scale on the typical magnitude, read at the
-    learning rate like the gain)} for every candidate but ``lead``. ``fit``: the leading
+    """{candidate: :class:`Gain` (log evidence gain [nats] of adding it to the leading fit, the
+    shape values of its best screened variant, that variant's linear scale on the typical
+    magnitude, read at the learning rate like the gain)} for every candidate but ``lead``. ``fit``: the leading
     single fit (system, factors ``x``, training coefficients ``y``); ``namer``: the naming
     step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the learning rate the
     likelihood is tempered by. The gain sums the candidate's screened shapes with their prior
@@ -67,11 +76,11 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
             scored.append((vals, lw + z, scale))
         total = shapes.logsumexp(t[1] for t in scored)
         best = max(scored, key=lambda t: t[1]) if math.isfinite(total) else ({}, -math.inf, 1.0)  # the set's own
-        out[name] = (total - z_lead, best[0], best[2])
+        out[name] = Gain(total - z_lead, best[0], best[2])
     return out
 
 
-def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label: str, extra: float) -> tuple:
+def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label: str, extra_prior: float) -> tuple:
     """(shape values, log prior mass of its discrete choices) the pair holds its second effect
     ``second`` at, on top of the leading fit ``lead_fit``.
 
@@ -82,15 +91,15 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at that variant's
     scale (read at the learning rate, so nearer the typical magnitude than an untempered one:
     it only sets where the counts are compared, the fit then searches the magnitude), failures
-    recorded against the pair ``label``; ``extra``: the first effect's prior terms, the same for
+    recorded against the pair ``label``; ``extra_prior``: the first effect's prior terms, the same for
     every count. Any other effect, and one whose partner screen failed (the fallback partner),
     keeps the shape its single fit reached (``models``), or, not fitted alone, its best screened
     shape; a discrete choice not chosen by runs takes its equal prior share."""
-    g, screened, scale = gained.get(second, (-math.inf, {}, 1.0))
+    g, screened, scale = gained.get(second, Gain(-math.inf, {}, 1.0))
     if math.isfinite(g) and (second in shapes.SCREEN_FACTORS or second in shapes.SCREEN_CHOICES):
         start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
         return namer.choose(second, {"start": start, "shape": screened, "scale": scale},
-                            jac=namer.jac_of(lead_fit), label=label, extra=extra)
+                            jac=namer.jac_of(lead_fit), label=label, extra_prior=extra_prior)
     if second in models:
         return namer.shape_values(second, models[second]["system"]), models[second].get("log_mass", 0.0)
     return screened, -math.log(max(1, len(shapes.choices(second))))
@@ -132,4 +141,4 @@ def choose(gained: dict, fallback: str | None) -> str | None:
     return max(finite, key=lambda t: t[1])[0] if finite else fallback  # max keeps the first of equals
 
 
-__all__ = ["pair_label", "gains", "shape", "first_again", "choose"]
+__all__ = ["Gain", "pair_label", "gains", "shape", "first_again", "choose"]

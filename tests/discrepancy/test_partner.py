@@ -71,7 +71,7 @@ def test_the_partner_is_the_effect_the_leading_fit_leaves_not_its_imitator(monke
     # the residual is the preload's signature at 2/3 of its typical size, chi^2 about 17 000:
     # its gain is about 8500 nats, the others' at most about 140 (chance alignment of
     # their random parts with that residual); a tenth of it leaves a wide margin on both sides
-    assert gained[TRUE_PARTNER][0] > 10.0 * max(gained[IMITATOR][0], gained[OTHER][0], 1.0)
+    assert gained[TRUE_PARTNER].nats > 10.0 * max(gained[IMITATOR].nats, gained[OTHER].nats, 1.0)
     # read alone against the data without any effect, the imitator ranks above the true partner:
     # a choice by the singles' evidence would pick it (the rule this module replaced)
     r = namer.lik.vec(namer.lik.meas - _toy(BASE), namer.train)
@@ -95,9 +95,9 @@ def test_the_partner_screen_stays_inside_the_counted_runs(monkeypatch):
 def test_a_candidate_whose_runs_fail_on_top_of_the_lead_gains_nothing_and_is_recorded(monkeypatch):
     namer = _namer(monkeypatch, fails=lambda runner, s: s.effects.spring_preload.enabled)
     gained = partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
-    assert gained[TRUE_PARTNER][0] == -math.inf
+    assert gained[TRUE_PARTNER].nats == -math.inf
     assert partner.choose(gained, fallback=IMITATOR) != TRUE_PARTNER
-    assert gained[TRUE_PARTNER][1] == {}  # no shape read: the set's own
+    assert gained[TRUE_PARTNER].shape == {}  # no shape read: the set's own
     # recorded against the effect that made the model fail, as its own screen's failures are
     # (listed in its ranking entry's failed_points), and against nothing else
     assert set(namer.failures[TRUE_PARTNER]) == {p.id for p in POINTS}
@@ -110,7 +110,7 @@ def test_the_tempered_screen_reads_the_likelihood_at_the_learning_rate(monkeypat
     # agree to rounding (1e-6 relative: both sides do the same arithmetic on the same arrays)
     namer = _namer(monkeypatch)
     fit, eta = _lead_fit(namer), 0.3
-    got = partner.gains(namer, LEAD, fit, CANDIDATES, eta=eta)[TRUE_PARTNER][0]
+    got = partner.gains(namer, LEAD, fit, CANDIDATES, eta=eta)[TRUE_PARTNER].nats
     k = math.sqrt(eta)
     nu = namer.lik.profile(fit["y"], namer.train)[1]  # the channels' gain and delay fitted to the lead
     with namer.lik.using(nu):
@@ -119,7 +119,7 @@ def test_the_tempered_screen_reads_the_likelihood_at_the_learning_rate(monkeypat
     z = selection.linear_screen_evidence(k * r, k * namer.jac, k * d, fit["x"], PRIOR_LOG_SD, min_scale=0.05)[0]
     z0 = selection.linear_screen_evidence(k * r, k * namer.jac, None, fit["x"], PRIOR_LOG_SD)[0]
     assert got == pytest.approx(z - z0, rel=1e-6)
-    assert got != pytest.approx(partner.gains(namer, LEAD, fit, CANDIDATES)[TRUE_PARTNER][0], rel=0.1)
+    assert got != pytest.approx(partner.gains(namer, LEAD, fit, CANDIDATES)[TRUE_PARTNER].nats, rel=0.1)
 
 
 @pytest.mark.parametrize("gained, fallback, expected", [
@@ -235,7 +235,7 @@ def test_the_short_springs_as_partner_take_their_count_from_runs_on_top_of_the_l
     label = partner.pair_label(LEAD, OTHER)
     got, mass = partner.shape(namer, OTHER, fit, gained, {}, label, 0.0)
     assert got["count"] == 1
-    assert got["clearance"] == gained[OTHER][1]["clearance"]  # the screen's best clearance on top of the lead
+    assert got["clearance"] == gained[OTHER].shape["clearance"]  # the screen's best clearance on top of the lead
     assert len(seen) == len(shapes.choices(OTHER)) * len(POINTS) and all(seen)  # one run per count and point
     # the other counts explain far less: the mass is the equal share, -log 3, to rounding
     assert mass == pytest.approx(-math.log(3.0), abs=1e-6)
