@@ -34,11 +34,12 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 7.45e10 by
-:func:`diagnosis_cost`, is admitted, 0.7 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3455; the limit was 7e10 until the magnitude grid's
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.33e10 by
+:func:`diagnosis_cost`, is admitted, 2.3 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3399; the limit was 7e10 until the magnitude grid's
 continuation added 168 bounded runs, and the pair's partner screen added 80 more, the
-partner's count choice 24 and the pair's second search of its first magnitude 72; it applies
+partner's count choice 24 and the pair's joint step 16 net (24, less 8 verification runs no
+longer repeated); it applies
 to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
@@ -328,13 +329,13 @@ DIAGNOSIS_SCREEN_EXTRA = 4 - 1
 DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
 #: a pair's second magnitude: grid + its continuation + refinement + derivative (on top of the
-#: leading fit the search's own run at the best magnitude is its verification), then the first
-#: magnitude again on top of it: refinement near its single fit's value + the two magnitudes'
-#: derivatives (discrepancy.partner.first_again). The second effect itself is chosen by
-#: screening every other candidate once on top of the leading fit, discrepancy.partner.gains,
-#: the short springs at DIAGNOSIS_SCREEN_EXTRA more shapes, and their count by
-#: DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape: counted apart in :func:`diagnosis_runs`
-DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + (8 + 1 + 1)
+#: leading fit the search's own run at the best magnitude is its verification), then one
+#: Gauss-Newton step on the factors and both magnitudes at up to DIAGNOSIS_STEP_TRIALS lengths
+#: (discrepancy.partner.joint_step). The second effect itself is chosen by screening every
+#: other candidate once on top of the leading fit, discrepancy.partner.gains, the short springs
+#: at DIAGNOSIS_SCREEN_EXTRA more shapes, and their count by DIAGNOSIS_CHOICE_RUNS more,
+#: discrepancy.partner.shape: counted apart in :func:`diagnosis_runs`
+DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + DIAGNOSIS_STEP_TRIALS
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration the six factors' and the magnitude's sensitivities and the step

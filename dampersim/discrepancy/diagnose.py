@@ -359,12 +359,12 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 shape_2, mass_2 = partner.shape(namer, second, f1, gained, models, label, prior_1)
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
-                if fit is not None:  # then the first magnitude again, on top of the second
-                    fit = partner.first_again(namer, best_single, f1, fit, second, shape_2, label)
+                if fit is not None:  # then both magnitudes and the factors together, one step
+                    fit = partner.joint_step(namer, best_single, second, f1, fit, shape_2, label)
                     fit["log_mass"] = f1.get("log_mass", 0.0) + mass_2
                     fit["jac"] = f1.get("jac")  # read at the first effect's factors
                     fit["effects"] = [best_single, second]
-                    fit["columns"] = [fit.pop("first_column", f1["column"]), fit["column"]]
+                    fit["columns"] = [f1["column"], fit["column"]]
                     fit.setdefault("m_first", f1["m"])
                     finish(label, fit, [best_single, second])
                     pairs.append(label)

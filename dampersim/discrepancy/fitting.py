@@ -131,15 +131,6 @@ def _effect_grid(name, n=5):
     return np.geomspace(clip_magnitude(name, lo / 1.8), clip_magnitude(name, hi * 1.5), n)
 
 
-def near_bracket(name, m: float) -> tuple:
-    """(low, high) log-magnitude bounds one step of effect ``name``'s magnitude grid either side
-    of ``m`` (in the magnitude's unit), inside the accepted range: the span a grid fit refines
-    in around its best value, for a magnitude fitted again near a known one."""
-    grid = _effect_grid(name)
-    ratio = float(grid[1] / grid[0])
-    return math.log(clip_magnitude(name, m / ratio)), math.log(clip_magnitude(name, m * ratio))
-
-
 def grid_bracket(name, objective, extension: int = GRID_EXTENSION) -> tuple:
     """(low, high) log-magnitude bounds of the refinement of effect ``name``'s fit: the
     neighbours of the value of its magnitude grid (:func:`_effect_grid`) where ``objective(m)``
@@ -209,5 +200,5 @@ def first_lower(trial, cost_now: float, fractions=CAL_STEP_FRACTIONS):
 
 __all__ = ["CALIBRATION", "UNCALIBRATED", "ESTIMATE_LOG_SD", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS",
            "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "GRID_EXTENSION", "COARSE_SEGMENTS",
-           "calibrated_system", "grid_bracket", "near_bracket",
+           "calibrated_system", "grid_bracket",
            "direction_step", "uncalibrated_systems", "coarse_system", "prior_step", "first_lower"]

@@ -236,12 +236,10 @@ class Namer:
         """The objective's prior term of effect ``name``'s continuous shapes at ``values``."""
         return shapes.prior_term(name, values, self.library_effect(name))
 
-    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None,
-            bracket=None):
+    def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None):
         """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple (system, x, y)
         to fit on top of another effect): a five-value grid, continued beyond an end that holds its
-        lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`), or ``bracket`` (log
-        bounds, for a magnitude fitted again near a known value), a bounded search in log magnitude,
+        lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`), a bounded search in log magnitude,
         a linearised re-calibration at every trial, then real runs against the re-calibrated, the
         start's and the estimated factors (on top of another effect the start's alone: the search's
         own run at the best magnitude). Returns a dict (cost, m, x, y, system, column: the
@@ -267,7 +265,7 @@ class Namer:
                                        self._magnitude_prior(name, m) + extra_prior)
             return tried[m]
 
-        lo, hi = grid_bracket(name, lambda m: at(m)[0]) if bracket is None else bracket
+        lo, hi = grid_bracket(name, lambda m: at(m)[0])
         with np.errstate(invalid="ignore", over="ignore"):
             minimize_scalar(lambda u: at(math.exp(u))[0], bounds=(lo, hi), method="bounded",
                             options={"xatol": 0.01, "maxiter": REFINE_EVALUATIONS})

@@ -15,10 +15,12 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from dampersim.discrepancy import fitting, selection, shapes
-from dampersim.discrepancy.effects import info, with_effect
+from dampersim.discrepancy.effects import clip_magnitude, info, with_effect
 from dampersim.discrepancy.fitting import PRIOR_LOG_SD
-from dampersim.discrepancy.naming import MIN_SCREEN_SCALE, fd_magnitude
+from dampersim.discrepancy.naming import MIN_SCREEN_SCALE
 from dampersim.errors import ParameterError
 
 
@@ -105,33 +107,52 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     return screened, -math.log(max(1, len(shapes.choices(second))))
 
 
-def first_again(namer, first: str, lead_fit: dict, pair_fit: dict, second: str, shape_2: dict, label: str) -> dict:
-    """The pair's fit with its first effect's magnitude fitted again on top of the second.
+def joint_step(namer, first: str, second: str, lead_fit: dict, pair_fit: dict, shape_2: dict, label: str) -> dict:
+    """The pair's fit after one Gauss-Newton step on the calibration factors and both magnitudes
+    together, accepted when a real run lowers its objective.
 
-    The first effect's single fit took up part of the second's signature as well (the drag +
-    short springs case: the drag at 3.40 alone against the truth's 3), and the pair's fit of
-    its second magnitude held it there. Here that magnitude is searched once more within one
-    grid step of its single fit (:func:`~dampersim.discrepancy.fitting.near_bracket`), the
-    second effect held at its fitted magnitude and shape ``shape_2``, the first at its single
-    fit's shapes, the calibration factors re-linearised at every trial as in :meth:`Namer.fit
-    <dampersim.discrepancy.naming.Namer.fit>`; failed runs are recorded against the pair
-    ``label``. The result replaces ``pair_fit`` only when its objective (the same data, priors
-    and factors' terms) is lower; its two magnitude columns are then read at the new set (the
-    second's by one more run per training point). ``lead_fit``: the first effect's single fit;
-    ``pair_fit``: the pair's fit from :meth:`Namer.fit`, its ``m`` the second's magnitude."""
-    e2 = info(second)
+    The pair's second magnitude is fitted on top of the first effect's single fit, whose
+    magnitude and factors were fitted without the second effect and may have taken up part of
+    its signature (the drag + short springs case: the drag at 3.40 alone against the truth's
+    3); its search re-calibrates only in the linearised objective and keeps the single fit's
+    factors. The step (:func:`~dampersim.discrepancy.fitting.prior_step`, at the fit's own
+    robust weights, as :meth:`Namer.refit <dampersim.discrepancy.naming.Namer.refit>` steps)
+    reads the factors' Jacobian the first fit is read with, the first magnitude's column of its
+    single fit and the second's of the pair fit, under the factors' and the magnitudes' priors;
+    the step lengths of :data:`~dampersim.discrepancy.fitting.CAL_STEP_FRACTIONS` are tried,
+    longest first, one run of the training points each, failures recorded against the pair
+    ``label``. The shapes stay: the first at its single fit's, the second at ``shape_2``, their
+    prior terms in the objective as before. The columns returned are those the step was taken
+    with (one step behind an accepted step, as after a refit). ``pair_fit``: the pair's fit
+    from :meth:`Namer.fit <dampersim.discrepancy.naming.Namer.fit>`, its ``m`` the second
+    magnitude; returned unchanged when no step length lowers the objective."""
+    e1, e2 = info(first), info(second)
+    m1, m2, x0 = float(lead_fit["m"]), float(pair_fit["m"]), np.asarray(pair_fit["x"], dtype=float)
     shape_1 = {**lead_fit.get("shape_start", {}), **lead_fit.get("shapes", {})}
-    prior_2 = namer._magnitude_prior(second, pair_fit["m"]) + namer.shape_prior(second, shape_2)
-    again = namer.fit(first, (pair_fit["system"], pair_fit["x"], pair_fit["y"]), extra_prior=prior_2, label=label,
-                      jac=namer.jac_of(lead_fit), shape=shape_1, bracket=fitting.near_bracket(first, lead_fit["m"]))
-    if again is None or not again["cost"] < pair_fit["cost"]:
+    held = namer.shape_prior(first, shape_1) + namer.shape_prior(second, shape_2)
+    jac = np.column_stack([namer.jac_of(lead_fit), lead_fit["column"], pair_fit["column"]])
+    n = len(x0)
+    prec = np.concatenate([namer.prec_cal, np.full(2, 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2)])
+    centre = np.concatenate([-x0, [math.log(e1.magnitudes[1] / m1), math.log(e2.magnitudes[1] / m2)]])
+    _, r, rw = namer._at_own_weights(pair_fit["y"])
+    step = fitting.prior_step(jac * rw[:, None], r * rw, prec, centre)
+
+    def trial(frac):
+        """(objective, factors, first magnitude, second magnitude, coefficients, set) a fraction along the step."""
+        x = np.clip(x0 + frac * step[:n], -fitting.CAL_BOUND, fitting.CAL_BOUND)
+        a = clip_magnitude(first, m1 * math.exp(frac * float(step[n])))
+        b = clip_magnitude(second, m2 * math.exp(frac * float(step[n + 1])))
+        system = fitting.calibrated_system(pair_fit["system"], x - x0)  # the factors relative to the pair's
+        system = with_effect(with_effect(system, first, {e1.magnitude: a}), second, {e2.magnitude: b})
+        y, failed = namer.runs(system, label)
+        prior = namer._magnitude_prior(first, a) + namer._magnitude_prior(second, b) + held
+        return (math.inf if failed else namer.cost(y, x, prior)), x, a, b, y, system
+
+    found = fitting.first_lower(trial, pair_fit["cost"]) if np.all(np.isfinite(step)) else None
+    if found is None:
         return pair_fit
-    moved, step = fd_magnitude(second, pair_fit["m"])
-    yd, failed = namer.runs(with_effect(again["system"], second, {e2.magnitude: moved}), label)
-    column_2 = 0.0 * again["column"] if failed else namer.w((yd - again["y"]) / step)
-    out = {**pair_fit, "cost": again["cost"], "y": again["y"], "system": again["system"], "column": column_2,
-           "first_column": again["column"], "m_first": again["m"]}
-    return out
+    c, x, a, b, y, system = found
+    return {**pair_fit, "cost": c, "x": x, "m": b, "m_first": a, "y": y, "system": system}
 
 
 def choose(gained: dict, fallback: str | None) -> str | None:
@@ -141,4 +162,4 @@ def choose(gained: dict, fallback: str | None) -> str | None:
     return max(finite, key=lambda t: t[1])[0] if finite else fallback  # max keeps the first of equals
 
 
-__all__ = ["Gain", "pair_label", "gains", "shape", "first_again", "choose"]
+__all__ = ["Gain", "pair_label", "gains", "shape", "joint_step", "choose"]

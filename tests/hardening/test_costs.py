@@ -190,8 +190,8 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
 def test_the_run_bounds_docs_state():
     """docs/discrepancy.md (the cost paragraph under Naming and Known limits, Speed) quotes these
     bounds: 12 points and 8 candidates without and with one ramp, 40 points with three."""
-    assert costs.diagnosis_runs(12, 8) == 3380
-    assert costs.diagnosis_runs(12, 8, 1) == 3433 and costs.diagnosis_runs(40, 8, 3) == 11557
+    assert costs.diagnosis_runs(12, 8) == 3324
+    assert costs.diagnosis_runs(12, 8, 1) == 3377 and costs.diagnosis_runs(40, 8, 3) == 11368
 
 
 def test_diagnosis_counts_follow_the_workflow():
@@ -218,9 +218,9 @@ def test_diagnosis_counts_follow_the_workflow():
     grid = inspect.signature(dg._effect_grid).parameters["n"].default
     ext = dg.fitting.GRID_EXTENSION
     assert costs.DIAGNOSIS_FIT_RUNS == grid + ext + dg.REFINE_EVALUATIONS + 3 + 1
-    # the second magnitude (its search's own run verifies it) and the first again near its single fit
-    # (refinement and the two magnitudes' derivatives; counted in tests/discrepancy/test_partner.py)
-    assert costs.DIAGNOSIS_PAIR_RUNS == grid + ext + dg.REFINE_EVALUATIONS + 1 + (dg.REFINE_EVALUATIONS + 2)
+    # the second magnitude (its search's own run verifies it), then the joint step's lengths
+    # (counted in tests/discrepancy/test_partner.py)
+    assert costs.DIAGNOSIS_PAIR_RUNS == grid + ext + dg.REFINE_EVALUATIONS + 1 + len(dg.CAL_STEP_FRACTIONS)
     # the re-calibration's start, per iteration the factors' and magnitude's sensitivities and the step
     # lengths, then the shape step (counted in tests/discrepancy/test_refit.py)
     assert costs.DIAGNOSIS_REFIT_ITERATIONS == naming.REFIT_ITERATIONS
@@ -247,13 +247,12 @@ def test_diagnosis_counts_follow_the_workflow():
     # (the recheck at the calibrated factors: 9 runs per point, one Gauss-Newton step's three
     # trials on the training points and its held-out check)
     # (a magnitude fit: 5 grid values, 3 beyond an end, 8 refinements, 3 verifications, 1 derivative;
-    # a pair's second magnitude: its search's own run as the verification, then the first magnitude
-    # again: 8 refinements and 2 derivatives; its partner screened among the 7 other candidates on
-    # top of the leading fit, the short springs at 3 more clearances, and their count chosen there
-    # by 3 runs)
+    # a pair's second magnitude: its search's own run as the verification, then the joint step at up
+    # to 3 lengths; its partner screened among the 7 other candidates on top of the leading fit, the
+    # short springs at 3 more clearances, and their count chosen there by 3 runs)
     assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 2 * (8 + 3) * 8
                                            + 3 * (2 * 20 * 8 + 3 * 8 + 4) + 3 * 8  # the short springs' count
-                                           + 3 * 8 + 4 + 34 * 8 + 4 + (17 + 10) * 8 + 4 + (7 + 3 + 3) * 8
+                                           + 3 * 8 + 4 + 34 * 8 + 4 + (17 + 3) * 8 + 4 + (7 + 3 + 3) * 8
                                            + 3 * 8 * 8)
 
 
