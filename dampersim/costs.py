@@ -34,12 +34,12 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 7.33e10 by
-:func:`diagnosis_cost`, is admitted, 2.3 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3399; the limit was 7e10 until the magnitude grid's
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.34e10 by
+:func:`diagnosis_cost`, is admitted, 2.2 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3403; the limit was 7e10 until the magnitude grid's
 continuation added 168 bounded runs, and the pair's partner screen added 80 more, the
-partner's count choice 24 and the pair's joint step 16 net (24, less 8 verification runs no
-longer repeated); it applies
+partner's count choice 24 and the pair's joint step 20 net (24 and
+4 held-out runs, less 8 verification runs no longer repeated); it applies
 to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
@@ -394,7 +394,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += DIAGNOSIS_CHOICE_RUNS * train if n_candidates else 0
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
-    runs += DIAGNOSIS_PAIR_RUNS * train + held
+    runs += DIAGNOSIS_PAIR_RUNS * train + 2 * held  # held out: again at the unstepped set when the stepped fails
     runs += (int(n_candidates) - 1 + DIAGNOSIS_SCREEN_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train if n_candidates >= 2 else 0
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing

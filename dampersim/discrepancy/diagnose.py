@@ -360,13 +360,14 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
                 if fit is not None:  # then both magnitudes and the factors together, one step
-                    fit = partner.joint_step(namer, best_single, second, f1, fit, shape_2, label)
-                    fit["log_mass"] = f1.get("log_mass", 0.0) + mass_2
-                    fit["jac"] = f1.get("jac")  # read at the first effect's factors
-                    fit["effects"] = [best_single, second]
-                    fit["columns"] = [f1["column"], fit["column"]]
-                    fit.setdefault("m_first", f1["m"])
+                    unstepped, fit = fit, partner.joint_step(namer, best_single, second, f1, fit, shape_2, label)
+                    for each in ([fit] if fit is unstepped else [fit, unstepped]):
+                        each.update({"log_mass": f1.get("log_mass", 0.0) + mass_2, "jac": f1.get("jac"),
+                                     "effects": [best_single, second], "columns": [f1["column"], each["column"]]})
+                        each.setdefault("m_first", f1["m"])  # jac: read at the first effect's factors
                     finish(label, fit, [best_single, second])
+                    if fit["yh"] is None and fit is not unstepped:  # the stepped set failed held out
+                        finish(label, unstepped, [best_single, second])
                     pairs.append(label)
                     eta = temper()  # the pair may fit better than any single effect
         # ramps: every fitted model replays them and they join its evidence as a prediction

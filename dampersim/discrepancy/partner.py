@@ -7,7 +7,8 @@ magnitude (and at each screened shape) on top of the leading fit, and the linear
 :meth:`~dampersim.discrepancy.naming.Namer.screen` (calibration factors re-fitted under their
 prior, the effect's scale under its magnitude prior) reads that signature against the leading
 fit's standardised residual. The candidate whose evidence gains most over the leading fit
-alone is the partner.
+alone is the partner. Once the second magnitude is fitted on top of the first fit, the pair's
+factors and both magnitudes take one Gauss-Newton step together (:func:`joint_step`).
 """
 
 from __future__ import annotations
@@ -123,9 +124,10 @@ def joint_step(namer, first: str, second: str, lead_fit: dict, pair_fit: dict, s
     longest first, one run of the training points each, failures recorded against the pair
     ``label``. The shapes stay: the first at its single fit's, the second at ``shape_2``, their
     prior terms in the objective as before. The columns returned are those the step was taken
-    with (one step behind an accepted step, as after a refit). ``pair_fit``: the pair's fit
-    from :meth:`Namer.fit <dampersim.discrepancy.naming.Namer.fit>`, its ``m`` the second
-    magnitude; returned unchanged when no step length lowers the objective."""
+    with (one step behind an accepted step, as after a refit); a parameter whose column is zero
+    (its derivative run failed) is held. ``pair_fit``: the pair's fit from :meth:`Namer.fit
+    <dampersim.discrepancy.naming.Namer.fit>`, its ``m`` the second magnitude; returned
+    unchanged (the same object) when no step length lowers the objective."""
     e1, e2 = info(first), info(second)
     m1, m2, x0 = float(lead_fit["m"]), float(pair_fit["m"]), np.asarray(pair_fit["x"], dtype=float)
     shape_1 = {**lead_fit.get("shape_start", {}), **lead_fit.get("shapes", {})}
@@ -135,7 +137,10 @@ def joint_step(namer, first: str, second: str, lead_fit: dict, pair_fit: dict, s
     prec = np.concatenate([namer.prec_cal, np.full(2, 1.0 / selection.MAGNITUDE_PRIOR_SD ** 2)])
     centre = np.concatenate([-x0, [math.log(e1.magnitudes[1] / m1), math.log(e2.magnitudes[1] / m2)]])
     _, r, rw = namer._at_own_weights(pair_fit["y"])
-    step = fitting.prior_step(jac * rw[:, None], r * rw, prec, centre)
+    ok = np.any(jac != 0.0, axis=0)  # a failed derivative run left a zero column: no direction, so no
+    step = np.zeros(n + 2)  # pull to the prior alone either (that parameter stays, as in Namer.refit)
+    if ok.any():
+        step[ok] = fitting.prior_step(jac[:, ok] * rw[:, None], r * rw, prec[ok], centre[ok])
 
     def trial(frac):
         """(objective, factors, first magnitude, second magnitude, coefficients, set) a fraction along the step."""
@@ -148,7 +153,7 @@ def joint_step(namer, first: str, second: str, lead_fit: dict, pair_fit: dict, s
         prior = namer._magnitude_prior(first, a) + namer._magnitude_prior(second, b) + held
         return (math.inf if failed else namer.cost(y, x, prior)), x, a, b, y, system
 
-    found = fitting.first_lower(trial, pair_fit["cost"]) if np.all(np.isfinite(step)) else None
+    found = fitting.first_lower(trial, pair_fit["cost"]) if step.any() and np.all(np.isfinite(step)) else None
     if found is None:
         return pair_fit
     c, x, a, b, y, system = found

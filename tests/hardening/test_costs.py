@@ -190,8 +190,8 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
 def test_the_run_bounds_docs_state():
     """docs/discrepancy.md (the cost paragraph under Naming and Known limits, Speed) quotes these
     bounds: 12 points and 8 candidates without and with one ramp, 40 points with three."""
-    assert costs.diagnosis_runs(12, 8) == 3324
-    assert costs.diagnosis_runs(12, 8, 1) == 3377 and costs.diagnosis_runs(40, 8, 3) == 11368
+    assert costs.diagnosis_runs(12, 8) == 3328
+    assert costs.diagnosis_runs(12, 8, 1) == 3381 and costs.diagnosis_runs(40, 8, 3) == 11381
 
 
 def test_diagnosis_counts_follow_the_workflow():
@@ -248,11 +248,11 @@ def test_diagnosis_counts_follow_the_workflow():
     # trials on the training points and its held-out check)
     # (a magnitude fit: 5 grid values, 3 beyond an end, 8 refinements, 3 verifications, 1 derivative;
     # a pair's second magnitude: its search's own run as the verification, then the joint step at up
-    # to 3 lengths; its partner screened among the 7 other candidates on top of the leading fit, the
+    # to 3 lengths, its held-out check twice (the unstepped pair's when the stepped set fails); its partner screened among the 7 other candidates on top of the leading fit, the
     # short springs at 3 more clearances, and their count chosen there by 3 runs)
     assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 2 * (8 + 3) * 8
                                            + 3 * (2 * 20 * 8 + 3 * 8 + 4) + 3 * 8  # the short springs' count
-                                           + 3 * 8 + 4 + 34 * 8 + 4 + (17 + 3) * 8 + 4 + (7 + 3 + 3) * 8
+                                           + 3 * 8 + 4 + 34 * 8 + 4 + (17 + 3) * 8 + 2 * 4 + (7 + 3 + 3) * 8
                                            + 3 * 8 * 8)
 
 
