@@ -34,12 +34,12 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 7.34e10 by
-:func:`diagnosis_cost`, is admitted, 2.2 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3403; the limit was 7e10 until the magnitude grid's
-continuation added 168 bounded runs, and the pair's partner screen added 80 more, the
-partner's count choice 24 and the pair's joint step 20 net (24 and
-4 held-out runs, less 8 verification runs no longer repeated); it applies
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.27e10 by
+:func:`diagnosis_cost`, is admitted, 3.0 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3375; the limit was 7e10 until the magnitude grid's
+continuation added 168 bounded runs, and the pair's partner screen added 80 more and the
+partner's count choice 24 (a fit on top of another effect no longer repeating its best run
+saves 8); it applies
 to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
@@ -329,13 +329,12 @@ DIAGNOSIS_SCREEN_EXTRA = 4 - 1
 DIAGNOSIS_CHOICE_RUNS = 3
 DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the trial (naming.SHAPES)
 #: a pair's second magnitude: grid + its continuation + refinement + derivative (on top of the
-#: leading fit the search's own run at the best magnitude is its verification), then one
-#: Gauss-Newton step on the factors and both magnitudes at up to DIAGNOSIS_STEP_TRIALS lengths
-#: (discrepancy.partner.joint_step). The second effect itself is chosen by screening every
-#: other candidate once on top of the leading fit, discrepancy.partner.gains, the short springs
-#: at DIAGNOSIS_SCREEN_EXTRA more shapes, and their count by DIAGNOSIS_CHOICE_RUNS more,
-#: discrepancy.partner.shape: counted apart in :func:`diagnosis_runs`
-DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1 + DIAGNOSIS_STEP_TRIALS
+#: leading fit the search's own run at the best magnitude is its verification). The second
+#: effect itself is chosen by screening every other candidate once on top of the leading fit,
+#: discrepancy.partner.gains, the short springs at DIAGNOSIS_SCREEN_EXTRA more shapes, and their
+#: count by DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape: counted apart in
+#: :func:`diagnosis_runs`
+DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
 #: its start, then per iteration the six factors' and the magnitude's sensitivities and the step
@@ -394,7 +393,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += DIAGNOSIS_CHOICE_RUNS * train if n_candidates else 0
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
-    runs += DIAGNOSIS_PAIR_RUNS * train + 2 * held  # held out: again at the unstepped set when the stepped fails
+    runs += DIAGNOSIS_PAIR_RUNS * train + held
     runs += (int(n_candidates) - 1 + DIAGNOSIS_SCREEN_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train if n_candidates >= 2 else 0
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing

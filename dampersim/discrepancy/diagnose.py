@@ -351,7 +351,7 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 second = partner.choose(gained, max((n for n in singles if n != best_single),
                                                     key=lambda n: models[n]["log_z"]))
                 report(0.79, f"name: trying the pair {best_single} + {second}")
-                # the first effect held as fitted alone while the second is fitted (its prior terms count)
+                # the first effect stays as fitted: its magnitude's and shapes' prior terms count
                 prior_1 = namer._magnitude_prior(best_single, f1["m"]) + namer.shape_prior(
                     best_single, {**f1.get("shape_start", {}), **f1.get("shapes", {})})
                 label = partner.pair_label(best_single, second)
@@ -359,15 +359,13 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                 shape_2, mass_2 = partner.shape(namer, second, f1, gained, models, label, prior_1)
                 fit = namer.fit(second, (f1["system"], f1["x"], f1["y"]), extra_prior=prior_1, label=label,
                                 jac=namer.jac_of(f1), shape=shape_2)
-                if fit is not None:  # then both magnitudes and the factors together, one step
-                    unstepped, fit = fit, partner.joint_step(namer, best_single, second, f1, fit, shape_2, label)
-                    for each in ([fit] if fit is unstepped else [fit, unstepped]):
-                        each.update({"log_mass": f1.get("log_mass", 0.0) + mass_2, "jac": f1.get("jac"),
-                                     "effects": [best_single, second], "columns": [f1["column"], each["column"]]})
-                        each.setdefault("m_first", f1["m"])  # jac: read at the first effect's factors
+                if fit is not None:
+                    fit["log_mass"] = f1.get("log_mass", 0.0) + mass_2
+                    fit["jac"] = f1.get("jac")  # read at the first effect's factors
+                    fit["effects"] = [best_single, second]
+                    fit["columns"] = [f1["column"], fit["column"]]
+                    fit["m_first"] = f1["m"]
                     finish(label, fit, [best_single, second])
-                    if fit["yh"] is None and fit is not unstepped:  # the stepped set failed held out
-                        finish(label, unstepped, [best_single, second])
                     pairs.append(label)
                     eta = temper()  # the pair may fit better than any single effect
         # ramps: every fitted model replays them and they join its evidence as a prediction

@@ -154,14 +154,8 @@ def test_the_diagnosis_tries_the_lead_with_the_partner_the_screen_chose(monkeypa
         seen["gains"] = real_gains(namer, lead, fit, candidates, eta)
         return seen["gains"]
 
-    real_step = partner.joint_step
-
-    def joint_step(*args):
-        seen["step"] = real_step(*args)
-        return seen["step"]
 
     monkeypatch.setattr(partner, "gains", gains)
-    monkeypatch.setattr(partner, "joint_step", joint_step)
     monkeypatch.setattr(partner, "choose", lambda gained, fallback: "spring_preload")
     monkeypatch.setattr(dg, "noise_level", lambda dof: 0.1)  # every held-out misfit lies above it
     monkeypatch.setattr(drive, "simulate_point", F.fake_model(None))
@@ -176,11 +170,6 @@ def test_the_diagnosis_tries_the_lead_with_the_partner_the_screen_chose(monkeypa
     assert label in d.posterior
     row = next(r for r in d.ranking if r["effect"] == label)
     assert "force" in row["parameters"] and row["fitted_from"] == "pair"
-    # the magnitudes reported are the pair fit's as the joint step left it (moved, or, not
-    # accepted, the single fit's first magnitude, which the pair step then records as m_first)
-    first_mag = info(seen["lead"]).magnitude
-    assert row["parameters"][first_mag] == pytest.approx(seen["step"]["m_first"], rel=1e-12)
-    assert row["parameters"]["force"] == pytest.approx(seen["step"]["m"], rel=1e-12)
     # both effects' held shapes are listed with the pair: the first at its single fit's values
     lead_row = next(r for r in d.ranking if r["effect"] == seen["lead"])
     for q in naming.SHAPES.get(seen["lead"], ()):
@@ -294,84 +283,17 @@ def test_the_diagnosis_holds_a_short_spring_partner_at_the_shape_read_on_top_of_
     assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))
 
 
-#: the lead's shapes as its single fit left them, away from the set's own (order 2, damping
-#: 0.02), so that their prior term is part of every objective compared (the toy ignores them)
-LEAD_SHAPES = {"order": 2.1, "damping": 0.03}
-#: the partner's shape held in the pair (the preload has none; the term is then 0)
-PARTNER_SHAPE = {}
-
-
 def _pair_on_a_biased_lead(namer, inertia=0.0013):
-    """(lead fit, pair fit, label): the lead's single fit at ``inertia`` (the truth's 0.001, as if
-    it had taken up part of the partner), at factors 2 % off the truth's (so that a step's factors
-    are seen to be read against the estimated set, not the lead's) and at LEAD_SHAPES, with its
-    magnitude column; the preload fitted on top of it with the lead's prior terms, as
-    diagnose's pair step fits it."""
+    """(lead fit, pair fit, label): the lead's single fit at ``inertia`` (the truth's 0.001) and
+    at factors 2 % off the truth's, and the preload fitted on top of it with the lead's prior
+    terms, as diagnose's pair step fits it."""
     x = 0.02 * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
-    system = fitting.calibrated_system(naming.with_effect(BASE, LEAD, {"inertia": inertia, **LEAD_SHAPES}), x)
-    lead = {"system": system, "x": x, "y": _toy(system), "m": inertia, "shapes": dict(LEAD_SHAPES),
-            "column": namer.w(SIG[LEAD] * inertia / info(LEAD).magnitudes[1])}  # d y / d log m, exact
+    system = fitting.calibrated_system(naming.with_effect(BASE, LEAD, {"inertia": inertia}), x)
+    lead = {"system": system, "x": x, "y": _toy(system), "m": inertia}
     label = partner.pair_label(LEAD, TRUE_PARTNER)
-    prior_1 = namer._magnitude_prior(LEAD, inertia) + namer.shape_prior(LEAD, LEAD_SHAPES)
-    pair = namer.fit(TRUE_PARTNER, (lead["system"], lead["x"], lead["y"]), extra_prior=prior_1, label=label,
-                     jac=namer.jac, shape=PARTNER_SHAPE)
+    pair = namer.fit(TRUE_PARTNER, (lead["system"], lead["x"], lead["y"]), label=label, jac=namer.jac,
+                     extra_prior=namer._magnitude_prior(LEAD, inertia))
     return lead, pair, label
-
-
-def test_the_pair_steps_both_magnitudes_and_the_factors_together(monkeypatch):
-    # the toy's truth: the lead at 0.001 plus the preload at 10 N at the estimated set's factors;
-    # the lead's single fit held at 0.0013 (0.26 in log from the truth) and factors 2 % off, and
-    # the preload fitted on top of that. One Gauss-Newton step in log magnitude on signatures
-    # linear in the magnitude lands 3 % short of the truth (0.0013 x exp(-0.231) = 0.00103, from
-    # 1 + u = 0.001 / 0.0013); the priors (the lead's centred on the truth, the preload's on 15 N,
-    # the factors' on the truth's) pull by less: 0.05 in log is a fifth of the distance before
-    namer = _namer(monkeypatch)
-    lead, pair, label = _pair_on_a_biased_lead(namer)
-    assert abs(math.log(pair["m"] / 10.0)) > 0.04  # the preload fitted on the biased lead is off too
-    del namer.calls[:]
-    out = partner.joint_step(namer, LEAD, TRUE_PARTNER, lead, pair, PARTNER_SHAPE, label)
-    assert abs(math.log(out["m_first"] / 0.001)) < 0.05
-    # the second magnitude moves towards the truth by half or more of its distance (the preload's
-    # prior at 15 N keeps it from the whole way: measured 0.056 -> 0.022 in log), the factors by
-    # a fifth or more (the lead's 3 % left by the step's linearisation is partly taken up by the
-    # factors: measured 0.049 -> 0.033 in norm), both far from what a step without them leaves
-    assert abs(math.log(out["m"] / 10.0)) < 0.5 * abs(math.log(pair["m"] / 10.0))
-    assert np.linalg.norm(out["x"]) < 0.8 * np.linalg.norm(pair["x"])
-    assert out["cost"] < pair["cost"]
-    # the set run is the one reported: both magnitudes, and the factors exp(x) on the estimated set
-    # (1e-12: the log of a product of exponentials, exact to rounding)
-    effects = out["system"].effects
-    assert effects.pendulum_absorber.inertia == out["m_first"] and effects.spring_preload.force == out["m"]
-    assert np.allclose(log_factors(out["system"]), out["x"], atol=1e-12)
-    # and its objective is that set's: data and every prior term the pair fit's objective holds,
-    # the lead's shapes included (1e-9 relative: the same arithmetic in another order)
-    extra = (namer._magnitude_prior(LEAD, out["m_first"]) + namer._magnitude_prior(TRUE_PARTNER, out["m"])
-             + namer.shape_prior(LEAD, LEAD_SHAPES))
-    assert namer.shape_prior(LEAD, LEAD_SHAPES) > 0.1  # the term is there to be missed
-    assert out["cost"] == pytest.approx(namer.cost(_toy(out["system"]), out["x"], extra), rel=1e-9)
-    # inside the cost model's share of the pair: one run per point per step length tried
-    assert 0 < len(namer.calls) <= len(fitting.CAL_STEP_FRACTIONS) * len(POINTS)
-
-
-def test_a_magnitude_whose_column_is_zero_stays_in_the_joint_step(monkeypatch):
-    # a failed derivative run leaves a zero column: that magnitude has no direction and must not
-    # be pulled to its prior's centre (15 N) by the prior alone; the others still step
-    namer = _namer(monkeypatch)
-    lead, pair, label = _pair_on_a_biased_lead(namer)
-    pair = {**pair, "column": np.zeros_like(pair["column"])}
-    out = partner.joint_step(namer, LEAD, TRUE_PARTNER, lead, pair, PARTNER_SHAPE, label)
-    assert out["m"] == pair["m"]
-    assert abs(math.log(out["m_first"] / 0.001)) < abs(math.log(lead["m"] / 0.001))
-
-
-def test_the_pair_is_kept_when_no_step_length_runs(monkeypatch):
-    # every run away from the lead's single-fit magnitude fails: the pair's fit comes back as it
-    # was, and the failures are recorded against the pair
-    namer = _namer(monkeypatch, fails=lambda runner, s: s.effects.spring_preload.enabled
-                   and s.effects.pendulum_absorber.inertia != 0.0013)
-    lead, pair, label = _pair_on_a_biased_lead(namer)
-    assert partner.joint_step(namer, LEAD, TRUE_PARTNER, lead, pair, PARTNER_SHAPE, label) is pair
-    assert set(namer.failures[label]) == {p.id for p in POINTS}
 
 
 def test_a_fit_on_top_of_another_effect_verifies_with_its_own_search_run(monkeypatch):
@@ -385,30 +307,3 @@ def test_a_fit_on_top_of_another_effect_verifies_with_its_own_search_run(monkeyp
     del namer.calls[:]
     _pair_on_a_biased_lead(namer)
     assert len(namer.calls) == (len(trials) + 1) * len(POINTS)
-
-
-def test_a_stepped_pair_that_fails_held_out_falls_back_to_the_unstepped_one(monkeypatch):
-    """The joint step is accepted on the training points; when its set then fails at a held-out
-    point, the pair is judged at the unstepped set (whose factors the first fit verified), not
-    excluded. The stand-in rig of tests.discrepancy.fake_rig, the step replaced by one to a
-    marked preload force at which every run fails."""
-    from dampersim.discrepancy import diagnose as dg
-    from tests.discrepancy import fake_rig as F
-
-    mark, seen = 12.345, {}
-
-    def joint_step(namer, first, second, lead, pair, shape_2, label):
-        seen["unstepped"] = pair
-        return {**pair, "m": mark, "system": naming.with_effect(pair["system"], second, {"force": mark})}
-
-    monkeypatch.setattr(partner, "joint_step", joint_step)
-    monkeypatch.setattr(partner, "choose", lambda gained, fallback: "spring_preload")
-    monkeypatch.setattr(dg, "noise_level", lambda dof: 0.1)  # every held-out misfit lies above it
-    fail = lambda system, p: "raise" if system.effects.spring_preload.force == mark else None  # noqa: E731
-    monkeypatch.setattr(drive, "simulate_point", F.fake_model(fail))
-    cands = ["clutch_slip", "turbine_drag", "pendulum_absorber", "spring_preload"]
-    d = dg.diagnose(F.campaign([F.point(*p) for p in F.POINTS]), workers=1, candidates=cands)
-    row = next(r for r in d.ranking if "+" in r["effect"])
-    assert row["excluded"] is None and row["reduced_chi2_held_out"] is not None
-    assert row["parameters"]["force"] == pytest.approx(seen["unstepped"]["m"], rel=1e-12) != mark
-    assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))

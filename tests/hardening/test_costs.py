@@ -190,8 +190,8 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
 def test_the_run_bounds_docs_state():
     """docs/discrepancy.md (the cost paragraph under Naming and Known limits, Speed) quotes these
     bounds: 12 points and 8 candidates without and with one ramp, 40 points with three."""
-    assert costs.diagnosis_runs(12, 8) == 3328
-    assert costs.diagnosis_runs(12, 8, 1) == 3381 and costs.diagnosis_runs(40, 8, 3) == 11381
+    assert costs.diagnosis_runs(12, 8) == 3300
+    assert costs.diagnosis_runs(12, 8, 1) == 3353 and costs.diagnosis_runs(40, 8, 3) == 11287
 
 
 def test_diagnosis_counts_follow_the_workflow():
@@ -218,9 +218,8 @@ def test_diagnosis_counts_follow_the_workflow():
     grid = inspect.signature(dg._effect_grid).parameters["n"].default
     ext = dg.fitting.GRID_EXTENSION
     assert costs.DIAGNOSIS_FIT_RUNS == grid + ext + dg.REFINE_EVALUATIONS + 3 + 1
-    # the second magnitude (its search's own run verifies it), then the joint step's lengths
-    # (counted in tests/discrepancy/test_partner.py)
-    assert costs.DIAGNOSIS_PAIR_RUNS == grid + ext + dg.REFINE_EVALUATIONS + 1 + len(dg.CAL_STEP_FRACTIONS)
+    # the second magnitude: its search's own run verifies it (counted in tests/discrepancy/test_partner.py)
+    assert costs.DIAGNOSIS_PAIR_RUNS == grid + ext + dg.REFINE_EVALUATIONS + 1
     # the re-calibration's start, per iteration the factors' and magnitude's sensitivities and the step
     # lengths, then the shape step (counted in tests/discrepancy/test_refit.py)
     assert costs.DIAGNOSIS_REFIT_ITERATIONS == naming.REFIT_ITERATIONS
@@ -247,12 +246,12 @@ def test_diagnosis_counts_follow_the_workflow():
     # (the recheck at the calibrated factors: 9 runs per point, one Gauss-Newton step's three
     # trials on the training points and its held-out check)
     # (a magnitude fit: 5 grid values, 3 beyond an end, 8 refinements, 3 verifications, 1 derivative;
-    # a pair's second magnitude: its search's own run as the verification, then the joint step at up
-    # to 3 lengths, its held-out check twice (the unstepped pair's when the stepped set fails); its partner screened among the 7 other candidates on top of the leading fit, the
-    # short springs at 3 more clearances, and their count chosen there by 3 runs)
+    # a pair's second magnitude: its search's own run as the verification; its partner screened
+    # among the 7 other candidates on top of the leading fit, the short springs at 3 more
+    # clearances, and their count chosen there by 3 runs)
     assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 2 * (8 + 3) * 8
                                            + 3 * (2 * 20 * 8 + 3 * 8 + 4) + 3 * 8  # the short springs' count
-                                           + 3 * 8 + 4 + 34 * 8 + 4 + (17 + 3) * 8 + 2 * 4 + (7 + 3 + 3) * 8
+                                           + 3 * 8 + 4 + 34 * 8 + 4 + 17 * 8 + 4 + (7 + 3 + 3) * 8
                                            + 3 * 8 * 8)
 
 
