@@ -154,7 +154,6 @@ def test_the_diagnosis_tries_the_lead_with_the_partner_the_screen_chose(monkeypa
         seen["gains"] = real_gains(namer, lead, fit, candidates, eta)
         return seen["gains"]
 
-
     monkeypatch.setattr(partner, "gains", gains)
     monkeypatch.setattr(partner, "choose", lambda gained, fallback: "spring_preload")
     monkeypatch.setattr(dg, "noise_level", lambda dof: 0.1)  # every held-out misfit lies above it
@@ -283,7 +282,7 @@ def test_the_diagnosis_holds_a_short_spring_partner_at_the_shape_read_on_top_of_
     assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))
 
 
-def _pair_on_a_biased_lead(namer, inertia=0.0013):
+def _pair_on_a_lead(namer, inertia=0.0013):
     """(lead fit, pair fit, label): the lead's single fit at ``inertia`` (the truth's 0.001) and
     at factors 2 % off the truth's, and the preload fitted on top of it with the lead's prior
     terms, as diagnose's pair step fits it."""
@@ -305,5 +304,10 @@ def test_a_fit_on_top_of_another_effect_verifies_with_its_own_search_run(monkeyp
     real = namer._trial
     monkeypatch.setattr(namer, "_trial", lambda *a: trials.append(a) or real(*a))
     del namer.calls[:]
-    _pair_on_a_biased_lead(namer)
+    _, pair, _ = _pair_on_a_lead(namer)
     assert len(namer.calls) == (len(trials) + 1) * len(POINTS)
+    # the run kept is the reported set's own: coefficients and objective at its magnitude and factors
+    # (1e-12 and 1e-9: the same toy evaluated twice, and the same arithmetic)
+    assert np.allclose(pair["y"], _toy(pair["system"]), rtol=1e-12, atol=1e-12)
+    extra = namer._magnitude_prior(LEAD, 0.0013) + namer._magnitude_prior(TRUE_PARTNER, pair["m"])
+    assert pair["cost"] == pytest.approx(namer.cost(_toy(pair["system"]), pair["x"], extra), rel=1e-9)
