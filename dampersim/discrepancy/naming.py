@@ -239,10 +239,10 @@ class Namer:
     def fit(self, name, start, extra_prior: float = 0.0, label: str | None = None, jac=None, shape=None):
         """Fit effect ``name``'s magnitude from ``start`` (a key of starts, or a tuple (system, x, y)
         to fit on top of another effect): a five-value grid, continued beyond an end that holds its
-        lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`), a bounded search in log magnitude,
-        a linearised re-calibration at every trial, then real runs against the re-calibrated, the
-        start's and the estimated factors (on top of another effect the start's alone: the search's
-        own run at the best magnitude). Returns a dict (cost, m, x, y, system, column: the
+        lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`), a bounded search in
+        log magnitude, a linearised re-calibration at every trial, then real runs against the
+        re-calibrated, the start's and the estimated factors (on top of another effect the start's
+        alone: the search's own run at the best magnitude). Returns a dict (cost, m, x, y, system, column: the
         standardised derivative w.r.t. log m) or None when every run failed. extra_prior: prior
         terms of parameters fitted before (the pair's other effect); label: the model failed runs
         are recorded against (default ``name``); jac: the factors' Jacobian of the linearised

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from dampersim.discrepancy import fitting, selection, shapes
+from dampersim.discrepancy import selection, shapes
 from dampersim.discrepancy.effects import info, with_effect
 from dampersim.discrepancy.fitting import PRIOR_LOG_SD
 from dampersim.discrepancy.naming import MIN_SCREEN_SCALE
@@ -38,15 +38,15 @@ def pair_label(first: str, second: str) -> str:
 def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
     """{candidate: :class:`Gain` (log evidence gain [nats] of adding it to the leading fit, the
     shape values of its best screened variant, that variant's linear scale on the typical
-    magnitude, read at the learning rate like the gain)} for every candidate but ``lead``. ``fit``: the leading
-    single fit (system, factors ``x``, training coefficients ``y``); ``namer``: the naming
-    step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the learning rate the
-    likelihood is tempered by. The gain sums the candidate's screened shapes with their prior
-    weights (shapes.variants), like the single screen; it is -inf, with the parameter set's
-    own shape ({}), when every run of the candidate on top of the leading fit failed or the
-    parameter set refuses it there. Failed runs are recorded against the candidate, as its
-    own screen's are: the effect is what made the model fail there. A failed candidate's scale
-    is 1."""
+    magnitude, read at the learning rate like the gain)} for every candidate but ``lead``.
+    ``fit``: the leading single fit (system, factors ``x``, training coefficients ``y``);
+    ``namer``: the naming step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the
+    learning rate the likelihood is tempered by. The gain sums the candidate's screened
+    shapes with their prior weights (shapes.variants), like the single screen; it is -inf,
+    with the parameter set's own shape ({}), when every run of the candidate on top of the
+    leading fit failed or the parameter set refuses it there. Failed runs are recorded
+    against the candidate, as its own screen's are: the effect is what made the model fail
+    there. A failed candidate's scale is 1."""
     k = math.sqrt(eta)
     jac = namer.jac_of(fit)
     nu = namer.lik.profile(fit["y"], namer.train)[1]
@@ -91,8 +91,8 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at that variant's
     scale (read at the learning rate, so nearer the typical magnitude than an untempered one:
     it only sets where the counts are compared, the fit then searches the magnitude), failures
-    recorded against the pair ``label``; ``extra_prior``: the first effect's prior terms, the same for
-    every count. Any other effect, and one whose partner screen failed (the fallback partner),
+    recorded against the pair ``label``; ``extra_prior``: the first effect's prior terms, the
+    same for every count. Any other effect, and one whose partner screen failed (the fallback partner),
     keeps the shape its single fit reached (``models``), or, not fitted alone, its best screened
     shape; a discrete choice not chosen by runs takes its equal prior share."""
     g, screened, scale = gained.get(second, Gain(-math.inf, {}, 1.0))

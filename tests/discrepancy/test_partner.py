@@ -282,19 +282,6 @@ def test_the_diagnosis_holds_a_short_spring_partner_at_the_shape_read_on_top_of_
     assert d.simulations <= costs.diagnosis_runs(len(F.POINTS), len(cands))
 
 
-def _pair_on_a_lead(namer, inertia=0.0013):
-    """(lead fit, pair fit, label): the lead's single fit at ``inertia`` (the truth's 0.001) and
-    at factors 2 % off the truth's, and the preload fitted on top of it with the lead's prior
-    terms, as diagnose's pair step fits it."""
-    x = 0.02 * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
-    system = fitting.calibrated_system(naming.with_effect(BASE, LEAD, {"inertia": inertia}), x)
-    lead = {"system": system, "x": x, "y": _toy(system), "m": inertia}
-    label = partner.pair_label(LEAD, TRUE_PARTNER)
-    pair = namer.fit(TRUE_PARTNER, (lead["system"], lead["x"], lead["y"]), label=label, jac=namer.jac,
-                     extra_prior=namer._magnitude_prior(LEAD, inertia))
-    return lead, pair, label
-
-
 def test_a_fit_on_top_of_another_effect_verifies_with_its_own_search_run(monkeypatch):
     # on top of another effect only the start's factors are verified, and that run is the
     # search's own at the best magnitude: one run per point per magnitude tried and one for the
@@ -303,8 +290,13 @@ def test_a_fit_on_top_of_another_effect_verifies_with_its_own_search_run(monkeyp
     trials = []
     real = namer._trial
     monkeypatch.setattr(namer, "_trial", lambda *a: trials.append(a) or real(*a))
+    # the lead's single fit at 0.0013 (the truth's 0.001) and factors 2 % off the truth's, the
+    # preload fitted on top of it with the lead's prior terms, as diagnose's pair step fits it
+    x = 0.02 * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+    lead = fitting.calibrated_system(naming.with_effect(BASE, LEAD, {"inertia": 0.0013}), x)
     del namer.calls[:]
-    _, pair, _ = _pair_on_a_lead(namer)
+    pair = namer.fit(TRUE_PARTNER, (lead, x, _toy(lead)), label=partner.pair_label(LEAD, TRUE_PARTNER),
+                     jac=namer.jac, extra_prior=namer._magnitude_prior(LEAD, 0.0013))
     assert len(namer.calls) == (len(trials) + 1) * len(POINTS)
     # the run kept is the reported set's own: coefficients and objective at its magnitude and factors
     # (1e-12 and 1e-9: the same toy evaluated twice, and the same arithmetic)
