@@ -322,8 +322,9 @@ DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
 DIAGNOSIS_FIT_RUNS = 5 + 3 + 8 + 3 + 1
 DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
 #: screen runs per start beyond one per candidate: the short springs are read at 4 clearances
-#: (discrepancy.shapes.SCREEN_FACTORS), the other effects at their own shape
-DIAGNOSIS_SCREEN_EXTRA = 4 - 1
+#: and the pendulum absorber at 3 tuning orders (discrepancy.shapes.SCREEN_FACTORS), the other
+#: effects at their own shape
+DIAGNOSIS_SCREEN_EXTRA = (4 - 1) + (3 - 1)
 #: runs before a shortlisted candidate's fit that choose its discrete shape: the short springs'
 #: 1 to 3 springs (discrepancy.shapes.SCREEN_CHOICES; naming.Namer.choose)
 DIAGNOSIS_CHOICE_RUNS = 3
@@ -331,9 +332,9 @@ DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the 
 #: a pair's second magnitude: grid + its continuation + refinement + derivative (on top of the
 #: leading fit the search's own run at the best magnitude is its verification). The second
 #: effect itself is chosen by screening every other candidate once on top of the leading fit,
-#: discrepancy.partner.gains, the short springs at DIAGNOSIS_SCREEN_EXTRA more shapes, and their
-#: count by DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape: counted apart in
-#: :func:`diagnosis_runs`
+#: discrepancy.partner.gains, the short springs and the absorber at DIAGNOSIS_SCREEN_EXTRA more
+#: shapes, and the springs' count by DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape:
+#: counted apart in :func:`diagnosis_runs`
 DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1
 DIAGNOSIS_REFIT_ITERATIONS = 3  # Gauss-Newton iterations of naming.Namer.refit (REFIT_ITERATIONS)
 #: per training point, the leading effect fitted again with the calibration (naming.Namer.refit):
@@ -368,8 +369,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     on the training points, the
     held-out check, the compare step's checks again at the calibrated set with one more
     Gauss-Newton step and its held-out check, a screen per candidate from two starts (the short
-    springs' at DIAGNOSIS_SCREEN_EXTRA more shapes, counted whether or not they are among the
-    candidates), the shortlist's fits from
+    springs' and the absorber's at DIAGNOSIS_SCREEN_EXTRA more shapes, counted whether or not
+    they are among the candidates), the shortlist's fits from
     both starts (with their shape parameters; the short springs' count chosen first by
     DIAGNOSIS_CHOICE_RUNS runs) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), the

@@ -84,22 +84,26 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     """(shape values, log prior mass of its discrete choices) the pair holds its second effect
     ``second`` at, on top of the leading fit ``lead_fit``.
 
-    An effect the screen reads over a shape grid (the short springs: clearance, then count) takes
-    both from what the leading fit leaves, since its own single fit, where it had one, took up
-    the leading effect's signature as well: its best screened clearance on top of that fit
-    (``gained``, from :func:`gains`) and the count :meth:`Namer.choose
-    <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at that variant's
-    scale (read at the learning rate, so nearer the typical magnitude than an untempered one:
-    it only sets where the counts are compared, the fit then searches the magnitude), failures
-    recorded against the pair ``label``; ``extra_prior``: the first effect's prior terms, the
-    same for every count. Any other effect, and one whose partner screen failed (the fallback partner),
-    keeps the shape its single fit reached (``models``), or, not fitted alone, its best screened
-    shape; a discrete choice not chosen by runs takes its equal prior share."""
+    An effect the screen reads over a shape grid (the short springs: clearance, then count; the
+    absorber: its tuning order) takes the screened shapes from what the leading fit leaves, since
+    its own single fit, where it had one, took up the leading effect's signature as well: its best
+    screened values on top of that fit (``gained``, from :func:`gains`) and the count
+    :meth:`Namer.choose <dampersim.discrepancy.naming.Namer.choose>` picks by real runs there, at
+    that variant's scale (read at the learning rate, so nearer the typical magnitude than an
+    untempered one: it only sets where the counts are compared, the fit then searches the
+    magnitude), failures recorded against the pair ``label``; ``extra_prior``: the first effect's
+    prior terms, the same for every count. Its shapes the screen does not read (the absorber's
+    damping) stay as its single fit reached them. Any other effect, and one whose partner screen
+    failed (the fallback partner), keeps the shape its single fit reached (``models``), or, not
+    fitted alone, its best screened shape; a discrete choice not chosen by runs takes its equal
+    prior share."""
     g, screened, scale = gained.get(second, Gain(-math.inf, {}, 1.0))
     if math.isfinite(g) and (second in shapes.SCREEN_FACTORS or second in shapes.SCREEN_CHOICES):
         start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
-        return namer.choose(second, {"start": start, "shape": screened, "scale": scale},
-                            jac=namer.jac_of(lead_fit), label=label, extra_prior=extra_prior)
+        chosen, mass = namer.choose(second, {"start": start, "shape": screened, "scale": scale},
+                                    jac=namer.jac_of(lead_fit), label=label, extra_prior=extra_prior)
+        alone = namer.shape_values(second, models[second]["system"]) if second in models else {}
+        return {**alone, **chosen}, mass
     if second in models:
         return namer.shape_values(second, models[second]["system"]), models[second].get("log_mass", 0.0)
     return screened, -math.log(max(1, len(shapes.choices(second))))

@@ -8,8 +8,10 @@ own value (the library's default unless the user's set says otherwise). Where th
 is so non-linear in a shape that a fit from the library's value cannot reach the truth (the
 short springs act only beyond their clearance; a point below it sees none of them), the
 screen first reads the effect over a grid of values (:data:`SCREEN_FACTORS`, weighted by the
-same prior; :func:`variants`), and the fit starts from the best of them. The linear screen
-scales a signature as a whole and so cannot tell a spring count from a stiffness: the discrete
+same prior; :func:`variants`), and the fit starts from the best of them (the short springs'
+clearance; the pendulum's tuning order, whose signature changes sign at an excited order).
+The linear screen scales a signature as a whole and so cannot tell a spring count from a
+stiffness: the discrete
 choices (:data:`SCREEN_CHOICES`, equal prior mass each; :func:`choices`) are compared by real
 runs at the same total (:func:`magnitude_at_choice`) before the fit, which holds the best.
 """
@@ -33,8 +35,16 @@ SHAPES = {
 #: value: the short springs' clearance 0.05 to 0.14 rad around the library's 0.1 rad in steps of
 #: sqrt(2) (the range a production damper's short springs engage in is 0.05-0.15 rad,
 #: dampersim.discrepancy.truths.SHAPE_RANGES; a point whose inner windup lies between two
-#: grid values sees the springs at one and not the other, which a linear fit cannot bridge)
-SCREEN_FACTORS = {"inner_short_springs": {"clearance": (0.5, 0.5 * math.sqrt(2.0), 1.0, math.sqrt(2.0))}}
+#: grid values sees the springs at one and not the other, which a linear fit cannot bridge);
+#: the pendulum's tuning order 4 % either side of the library's order 2 as well as at it. The
+#: library tunes the pendulum to order 2.0, an order the drive excites, and there the absorber's
+#: effective inertia at that order, J_a / (1 - (2 / n_t)^2), changes sign: a pendulum tuned below
+#: the order acts against the secondary inertia's motion, one tuned above it with it. A
+#: Gauss-Newton step from 2.0 takes whichever side its linearisation at the resonance points to;
+#: the grid's 1.92 and 2.08 read the two sides (production tunings lie 1.9 to 2.2,
+#: dampersim.discrepancy.truths.SHAPE_RANGES), and the shape step refines the order from there
+SCREEN_FACTORS = {"inner_short_springs": {"clearance": (0.5, 0.5 * math.sqrt(2.0), 1.0, math.sqrt(2.0))},
+                  "pendulum_absorber": {"order": (0.96, 1.0, 1.04)}}
 #: discrete shapes the screen chooses among, with equal prior mass: 1 to 3 of the inner set's
 #: five pairs carry a short spring. The count is not only a factor on the stiffness: below
 #: the clearance each short pair lacks its full-length inner spring, so the set is softer there

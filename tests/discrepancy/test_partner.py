@@ -85,11 +85,16 @@ def test_the_partner_is_the_effect_the_leading_fit_leaves_not_its_imitator(monke
 
 def test_the_partner_screen_stays_inside_the_counted_runs(monkeypatch):
     # one run per training point for each other candidate, the short springs at their screened
-    # clearances: the cost model's bound for the partner screen
+    # clearances: within the cost model's bound for the partner screen, which also counts the
+    # absorber's screened tuning orders (here the absorber leads and is not screened)
     namer = _namer(monkeypatch)
     partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
+    own = {n: getattr(BASE.effects, n) for n in CANDIDATES}
+    extra = sum(len(shapes.variants(n, own[n])) - 1 for n in CANDIDATES if n != LEAD)
+    assert extra == 3  # the short springs' three clearances beyond the library's
+    assert len(namer.calls) == (len(CANDIDATES) - 1 + extra) * len(POINTS)
     bound = (len(CANDIDATES) - 1 + costs.DIAGNOSIS_SCREEN_EXTRA) * len(POINTS)
-    assert len(namer.calls) == bound  # the short springs are among the others: the bound is reached
+    assert len(namer.calls) == bound - (len(shapes.variants(LEAD, own[LEAD])) - 1) * len(POINTS)
 
 
 def test_a_candidate_whose_runs_fail_on_top_of_the_lead_gains_nothing_and_is_recorded(monkeypatch):
