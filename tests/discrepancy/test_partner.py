@@ -248,6 +248,22 @@ def test_a_partner_without_a_shape_grid_keeps_its_single_fit_s_shape(monkeypatch
     assert not namer.calls
 
 
+def test_an_absorber_partner_takes_its_screened_order_and_keeps_its_single_fit_s_damping(monkeypatch):
+    # the absorber's tuning order is screened (on both sides of the excited order 2), its damping
+    # is not: as a partner it takes the order read on top of the lead and the damping its own
+    # single fit reached; no runs, since it has no discrete choice
+    namer = _namer(monkeypatch)
+    fit = _lead_fit(namer)
+    alone = naming.with_effect(BASE, "pendulum_absorber", {"inertia": 0.0008, "order": 2.05, "damping": 0.06})
+    models = {"pendulum_absorber": {"system": alone, "log_mass": 0.0}}
+    gained = {"pendulum_absorber": partner.Gain(4.0, {"order": 1.92}, 0.9)}
+    got, mass = partner.shape(namer, "pendulum_absorber", fit, gained, models, "x", 0.0)
+    assert got == {"order": 1.92, "damping": 0.06} and mass == 0.0
+    # not fitted alone: the screened order and the set's own damping (held by the fit as the set has it)
+    assert partner.shape(namer, "pendulum_absorber", fit, gained, {}, "x", 0.0) == ({"order": 1.92}, 0.0)
+    assert not namer.calls
+
+
 def test_the_short_springs_fall_back_to_their_single_fit_when_their_screen_failed(monkeypatch):
     namer = _namer(monkeypatch)
     fit = _lead_fit(namer)
