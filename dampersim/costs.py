@@ -34,12 +34,12 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 7.27e10 by
-:func:`diagnosis_cost`, is admitted, 3.0 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3375; the limit was 7e10 until the magnitude grid's
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.38e10 by
+:func:`diagnosis_cost`, is admitted, 1.6 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3423; the limit was 7e10 until the magnitude grid's
 continuation added 168 bounded runs, and the pair's partner screen added 80 more and the
 partner's count choice 24 (a fit on top of another effect no longer repeating its best run
-saves 8); it applies
+saves 8; the absorber's screened tuning orders add 48); it applies
 to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
@@ -322,9 +322,11 @@ DIAGNOSIS_SHORTLIST = 3  # candidates fitted after the screen (shortlist)
 DIAGNOSIS_FIT_RUNS = 5 + 3 + 8 + 3 + 1
 DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
 #: screen runs per start beyond one per candidate: the short springs are read at 4 clearances
-#: and the pendulum absorber at 3 tuning orders (discrepancy.shapes.SCREEN_FACTORS), the other
-#: effects at their own shape
-DIAGNOSIS_SCREEN_EXTRA = (4 - 1) + (3 - 1)
+#: (discrepancy.shapes.SCREEN_FACTORS), the other effects at their own shape
+DIAGNOSIS_SCREEN_EXTRA = 4 - 1
+#: the partner screen's runs beyond one per candidate: the short springs at 4 clearances and the
+#: pendulum absorber at 3 tuning orders (discrepancy.shapes.partner_grid)
+DIAGNOSIS_PARTNER_EXTRA = (4 - 1) + (3 - 1)
 #: runs before a shortlisted candidate's fit that choose its discrete shape: the short springs'
 #: 1 to 3 springs (discrepancy.shapes.SCREEN_CHOICES; naming.Namer.choose)
 DIAGNOSIS_CHOICE_RUNS = 3
@@ -332,7 +334,7 @@ DIAGNOSIS_SHAPE_RUNS = 2 + 1  # at most two shape parameters' derivatives + the 
 #: a pair's second magnitude: grid + its continuation + refinement + derivative (on top of the
 #: leading fit the search's own run at the best magnitude is its verification). The second
 #: effect itself is chosen by screening every other candidate once on top of the leading fit,
-#: discrepancy.partner.gains, the short springs and the absorber at DIAGNOSIS_SCREEN_EXTRA more
+#: discrepancy.partner.gains, the short springs and the absorber at DIAGNOSIS_PARTNER_EXTRA more
 #: shapes, and the springs' count by DIAGNOSIS_CHOICE_RUNS more, discrepancy.partner.shape:
 #: counted apart in :func:`diagnosis_runs`
 DIAGNOSIS_PAIR_RUNS = 5 + 3 + 8 + 1
@@ -369,8 +371,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     on the training points, the
     held-out check, the compare step's checks again at the calibrated set with one more
     Gauss-Newton step and its held-out check, a screen per candidate from two starts (the short
-    springs' and the absorber's at DIAGNOSIS_SCREEN_EXTRA more shapes, counted whether or not
-    they are among the candidates), the shortlist's fits from
+    springs' at DIAGNOSIS_SCREEN_EXTRA more shapes, counted whether or not they are among the
+    candidates), the shortlist's fits from
     both starts (with their shape parameters; the short springs' count chosen first by
     DIAGNOSIS_CHOICE_RUNS runs) and their held-out checks, "no missing
     effect" at the calibration factors of each fitted effect (and its held-out check), the
@@ -395,7 +397,7 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
     runs += DIAGNOSIS_PAIR_RUNS * train + held
-    runs += (int(n_candidates) - 1 + DIAGNOSIS_SCREEN_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train if n_candidates >= 2 else 0
+    runs += (int(n_candidates) - 1 + DIAGNOSIS_PARTNER_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train if n_candidates >= 2 else 0
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing
     return int(runs)

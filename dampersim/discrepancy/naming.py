@@ -219,12 +219,13 @@ class Namer:
             out.append((vals, lw))
         return out
 
-    def screen_variants(self, name) -> list:
+    def screen_variants(self, name, grid=None) -> list:
         """The (shape values, log weight) effect ``name`` is screened at: shapes.variants around
-        the parameter set's shape, those it refuses left out, the weights renormalised (the
-        set's own shape, ({}, 0), when it refuses them all)."""
+        the parameter set's shape (over ``grid``, default shapes.SCREEN_FACTORS), those it
+        refuses left out, the weights renormalised (the set's own shape, ({}, 0), when it
+        refuses them all)."""
         own = self.library_effect(name)
-        return shapes.renormalised(self.admissible(name, shapes.variants(name, own))) or [({}, 0.0)]
+        return shapes.renormalised(self.admissible(name, shapes.variants(name, own, grid))) or [({}, 0.0)]
 
     def shape_values(self, name, system) -> dict:
         """The fitted and screened shape values of effect ``name`` in ``system``."""

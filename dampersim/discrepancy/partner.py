@@ -59,7 +59,7 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
             continue
         e = info(name)
         scored = []
-        for vals, lw in namer.screen_variants(name):
+        for vals, lw in namer.screen_variants(name, shapes.partner_grid()):
             try:
                 system = with_effect(fit["system"], name, {**vals, e.magnitude: e.magnitudes[1]})
             except ParameterError:  # refused beside the leading effect: not run
@@ -98,7 +98,7 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     fitted alone, its best screened shape; a discrete choice not chosen by runs takes its equal
     prior share."""
     g, screened, scale = gained.get(second, Gain(-math.inf, {}, 1.0))
-    if math.isfinite(g) and (second in shapes.SCREEN_FACTORS or second in shapes.SCREEN_CHOICES):
+    if math.isfinite(g) and (second in shapes.partner_grid() or second in shapes.SCREEN_CHOICES):
         start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
         chosen, mass = namer.choose(second, {"start": start, "shape": screened, "scale": scale},
                                     jac=namer.jac_of(lead_fit), label=label, extra_prior=extra_prior)

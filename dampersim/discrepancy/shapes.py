@@ -8,10 +8,10 @@ own value (the library's default unless the user's set says otherwise). Where th
 is so non-linear in a shape that a fit from the library's value cannot reach the truth (the
 short springs act only beyond their clearance; a point below it sees none of them), the
 screen first reads the effect over a grid of values (:data:`SCREEN_FACTORS`, weighted by the
-same prior; :func:`variants`), and the fit starts from the best of them (the short springs'
-clearance; the pendulum's tuning order, whose signature changes sign at an excited order).
-The linear screen scales a signature as a whole and so cannot tell a spring count from a
-stiffness: the discrete
+same prior; :func:`variants`), and the fit starts from the best of them; a pair's partner
+screen also reads the pendulum's tuning order, whose signature changes sign at an excited
+order (:data:`PARTNER_FACTORS`). The linear screen scales a signature as a whole and so cannot
+tell a spring count from a stiffness: the discrete
 choices (:data:`SCREEN_CHOICES`, equal prior mass each; :func:`choices`) are compared by real
 runs at the same total (:func:`magnitude_at_choice`) before the fit, which holds the best.
 """
@@ -35,16 +35,17 @@ SHAPES = {
 #: value: the short springs' clearance 0.05 to 0.14 rad around the library's 0.1 rad in steps of
 #: sqrt(2) (the range a production damper's short springs engage in is 0.05-0.15 rad,
 #: dampersim.discrepancy.truths.SHAPE_RANGES; a point whose inner windup lies between two
-#: grid values sees the springs at one and not the other, which a linear fit cannot bridge);
-#: the pendulum's tuning order 4 % either side of the library's order 2 as well as at it. The
-#: library tunes the pendulum to order 2.0, an order the drive excites, and there the absorber's
-#: effective inertia at that order, J_a / (1 - (2 / n_t)^2), changes sign: a pendulum tuned below
-#: the order acts against the secondary inertia's motion, one tuned above it with it. A
-#: Gauss-Newton step from 2.0 takes whichever side its linearisation at the resonance points to;
-#: the grid's 1.92 and 2.08 read the two sides (production tunings lie 1.9 to 2.2,
-#: dampersim.discrepancy.truths.SHAPE_RANGES), and the shape step refines the order from there
-SCREEN_FACTORS = {"inner_short_springs": {"clearance": (0.5, 0.5 * math.sqrt(2.0), 1.0, math.sqrt(2.0))},
-                  "pendulum_absorber": {"order": (0.96, 1.0, 1.04)}}
+#: grid values sees the springs at one and not the other, which a linear fit cannot bridge)
+SCREEN_FACTORS = {"inner_short_springs": {"clearance": (0.5, 0.5 * math.sqrt(2.0), 1.0, math.sqrt(2.0))}}
+#: continuous shapes a pair's partner screen reads besides SCREEN_FACTORS: the pendulum's tuning
+#: order 4 % either side of the library's order 2 as well as at it. The library tunes the
+#: pendulum to order 2.0, an order the drive excites, and there the absorber's effective inertia
+#: at that order, J_a / (1 - (2 / n_t)^2), changes sign with the tuning; a pair holds its second
+#: effect's shape, so the order it is held at is read on top of the first fit. The single
+#: screen keeps the library's order: read there at 1.92, 2.0 and 2.08, it chose a detuned start
+#: for the bundled example's absorber, tuned to 2.0, and the diagnosis lost it (docs/discrepancy.md,
+#: Benchmark, "The absorber's tuning order screened on both sides")
+PARTNER_FACTORS = {"pendulum_absorber": {"order": (0.96, 1.0, 1.04)}}
 #: discrete shapes the screen chooses among, with equal prior mass: 1 to 3 of the inner set's
 #: five pairs carry a short spring. The count is not only a factor on the stiffness: below
 #: the clearance each short pair lacks its full-length inner spring, so the set is softer there
@@ -70,21 +71,28 @@ def renormalised(options) -> list:
     return [(v, lw - norm) for v, lw in options]
 
 
-def variants(name: str, effect) -> list:
+def variants(name: str, effect, grid=None) -> list:
     """The continuous shape values the screen reads effect ``name`` at: a list of (values
-    {parameter: value}, log prior weight), the weights summing to one over the list.
+    {parameter: value}, log prior weight), the weights summing to one over the list. grid:
+    {effect: {parameter: factors}}, default :data:`SCREEN_FACTORS` (the partner screen passes
+    :func:`partner_grid`).
     ``effect``: the effect's parameters in the parameter set (their values are the grid's
     centre). An effect without screened shapes has the single variant ({}, 0.0): it is read as
     the set has it. The discrete choices are not read by the screen (:func:`choices`)."""
     meta = {p["name"]: p for p in parameters_of(name)}
     out = [({}, 0.0)]
-    for q, factors in SCREEN_FACTORS.get(name, {}).items():
+    for q, factors in (SCREEN_FACTORS if grid is None else grid).get(name, {}).items():
         v0 = float(getattr(effect, q))
         logw = [-0.5 * (math.log(f) / SHAPE_PRIOR_SD) ** 2 for f in factors]
         norm = logsumexp(logw)
         axis = [({q: clip_to_range(v0 * f, meta[q])}, lw - norm) for f, lw in zip(factors, logw)]
         out = [({**a, **b}, la + lb) for a, la in out for b, lb in axis]
     return out
+
+
+def partner_grid() -> dict:
+    """The shape grid of a pair's partner screen: :data:`SCREEN_FACTORS` and :data:`PARTNER_FACTORS`."""
+    return {**SCREEN_FACTORS, **PARTNER_FACTORS}
 
 
 def choices(name: str) -> list:
@@ -145,5 +153,5 @@ def log_ratio(a: float, b: float) -> float:
     return math.log(a / b) if a > 0 and b > 0 else 0.0
 
 
-__all__ = ["SHAPES", "SCREEN_FACTORS", "SCREEN_CHOICES", "PER_UNIT", "logsumexp", "renormalised", "variants", "choices",
+__all__ = ["SHAPES", "SCREEN_FACTORS", "PARTNER_FACTORS", "partner_grid", "SCREEN_CHOICES", "PER_UNIT", "logsumexp", "renormalised", "variants", "choices",
            "magnitude_at_choice", "choice_log_mass", "prior_term", "log_ratio"]

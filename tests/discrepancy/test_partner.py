@@ -90,11 +90,12 @@ def test_the_partner_screen_stays_inside_the_counted_runs(monkeypatch):
     namer = _namer(monkeypatch)
     partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
     own = {n: getattr(BASE.effects, n) for n in CANDIDATES}
-    extra = sum(len(shapes.variants(n, own[n])) - 1 for n in CANDIDATES if n != LEAD)
+    grid = shapes.partner_grid()
+    extra = sum(len(shapes.variants(n, own[n], grid)) - 1 for n in CANDIDATES if n != LEAD)
     assert extra == 3  # the short springs' three clearances beyond the library's
     assert len(namer.calls) == (len(CANDIDATES) - 1 + extra) * len(POINTS)
-    bound = (len(CANDIDATES) - 1 + costs.DIAGNOSIS_SCREEN_EXTRA) * len(POINTS)
-    assert len(namer.calls) == bound - (len(shapes.variants(LEAD, own[LEAD])) - 1) * len(POINTS)
+    bound = (len(CANDIDATES) - 1 + costs.DIAGNOSIS_PARTNER_EXTRA) * len(POINTS)
+    assert len(namer.calls) == bound - (len(shapes.variants(LEAD, own[LEAD], grid)) - 1) * len(POINTS)
 
 
 def test_a_candidate_whose_runs_fail_on_top_of_the_lead_gains_nothing_and_is_recorded(monkeypatch):

@@ -71,28 +71,27 @@ def test_the_variants_carry_the_prior_and_the_library_shape():
     # clearance against the library's own, log ratio -(ln 2 / 0.5)^2 / 2 = -0.961
     w = {round(v["clearance"], 4): lw for v, lw in vs}
     assert w[0.05] - w[0.1] == pytest.approx(-0.5 * (math.log(2.0) / SHAPE_PRIOR_SD) ** 2, rel=1e-12)
-    # every other effect but the absorber is read at the parameter set's own shape only: one variant, weight 1
+    # every other effect is read at the parameter set's own shape only: one variant, weight 1
     for name in NAMES:
-        if name not in (NAME, "pendulum_absorber"):
-            assert shapes.variants(name, getattr(BASE.effects, name)) == [({}, 0.0)]
         if name != NAME:
+            assert shapes.variants(name, getattr(BASE.effects, name)) == [({}, 0.0)]
             assert shapes.choices(name) == []
 
 
-def test_the_absorber_is_screened_on_both_sides_of_the_excited_order_it_is_tuned_to():
+def test_a_partner_absorber_is_screened_on_both_sides_of_the_excited_order_it_is_tuned_to():
     # the library tunes the pendulum to order 2.0, which the drive excites: its effective inertia
-    # there, J_a / (1 - (2 / n_t)^2), changes sign with the tuning, so the screen reads one order
-    # below 2 and one above it besides the library's own (the shape step then refines the order)
+    # there, J_a / (1 - (2 / n_t)^2), changes sign with the tuning, so the partner screen reads one
+    # order below 2 and one above it besides the library's own; the single screen does not
     own = BASE.effects.pendulum_absorber
     assert own.order == 2.0
-    vs = shapes.variants("pendulum_absorber", own)
+    assert shapes.variants("pendulum_absorber", own) == [({}, 0.0)]
+    vs = shapes.variants("pendulum_absorber", own, shapes.partner_grid())
     orders = sorted(v["order"] for v, _ in vs)
     assert orders == pytest.approx([1.92, 2.0, 2.08], rel=1e-12)
     assert shapes.logsumexp(lw for _, lw in vs) == pytest.approx(0.0, abs=1e-12)
     # the prior hardly prefers the library's tuning over 4 % either side: (ln 1.04 / 0.5)^2 / 2 = 0.003
     w = {round(v["order"], 2): lw for v, lw in vs}
     assert w[2.0] - w[2.08] == pytest.approx(0.5 * (math.log(1.04) / SHAPE_PRIOR_SD) ** 2, rel=1e-12)
-    assert "order" in shapes.SHAPES["pendulum_absorber"]  # the fit's shape step refines it from there
 
 
 def test_the_count_choices_keep_the_engaged_rate():

@@ -190,8 +190,8 @@ def test_the_diagnosis_time_estimate_counts_the_ramps(monkeypatch):
 def test_the_run_bounds_docs_state():
     """docs/discrepancy.md (the cost paragraph under Naming and Known limits, Speed) quotes these
     bounds: 12 points and 8 candidates without and with one ramp, 40 points with three."""
-    assert costs.diagnosis_runs(12, 8) == 3348
-    assert costs.diagnosis_runs(12, 8, 1) == 3401 and costs.diagnosis_runs(40, 8, 3) == 11449
+    assert costs.diagnosis_runs(12, 8) == 3316
+    assert costs.diagnosis_runs(12, 8, 1) == 3369 and costs.diagnosis_runs(40, 8, 3) == 11341
 
 
 def test_diagnosis_counts_follow_the_workflow():
@@ -229,7 +229,10 @@ def test_diagnosis_counts_follow_the_workflow():
     # the screen's extra shapes: every effect's screened variants beyond its one own shape
     own = default_parameters().effects
     assert costs.DIAGNOSIS_SCREEN_EXTRA == sum(len(shapes.variants(n, getattr(own, n))) - 1 for n in NAMES)
-    assert sum(len(shapes.variants(n, getattr(own, n))) > 1 for n in NAMES) == 2  # the short springs, the absorber
+    assert sum(len(shapes.variants(n, getattr(own, n))) > 1 for n in NAMES) == 1  # the short springs
+    # ... and the partner screen's: the short springs' clearances and the absorber's tuning orders
+    assert costs.DIAGNOSIS_PARTNER_EXTRA == sum(len(shapes.variants(n, getattr(own, n), shapes.partner_grid())) - 1
+                                                for n in NAMES)
     # ... and the runs that choose its discrete shape, one per choice
     assert costs.DIAGNOSIS_CHOICE_RUNS == max(len(shapes.choices(n)) for n in NAMES)
     assert sum(bool(shapes.choices(n)) for n in NAMES) == 1
@@ -249,8 +252,8 @@ def test_diagnosis_counts_follow_the_workflow():
     # a pair's second magnitude: its search's own run as the verification; its partner screened
     # among the 7 other candidates on top of the leading fit, the short springs at 3 more
     # clearances and the absorber at 2 more tuning orders, and the springs' count chosen there
-    # by 3 runs; the screen from two starts likewise reads 3 + 2 more shapes)
-    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 2 * (8 + 3 + 2) * 8
+    # by 3 runs; the screen from two starts reads the short springs' 3 more clearances)
+    assert costs.diagnosis_runs(12, 8) == (120 + 24 * 8 + 2 * 54 * 8 + 4 + 9 * 12 + 3 * 8 + 4 + 2 * (8 + 3) * 8
                                            + 3 * (2 * 20 * 8 + 3 * 8 + 4) + 3 * 8  # the short springs' count
                                            + 3 * 8 + 4 + 34 * 8 + 4 + 17 * 8 + 4 + (7 + 3 + 2 + 3) * 8
                                            + 3 * 8 * 8)
