@@ -34,12 +34,12 @@ The budgets are work, not time, and kept their values when the rate was correcte
 :data:`DEFAULT_AUTOSTART` 2.5e9 step·DOF (about 2.8 min of one core at the rate: every
 default page state, the largest being the Maps page's 80 points at 2.15e9 with the default
 48/16 segments, starts by itself) and :data:`DEFAULT_LIMIT` 7.5e10 step·DOF (about 83 min of
-one core at the rate: the bundled example campaign's diagnosis, bounded at 7.38e10 by
-:func:`diagnosis_cost`, is admitted, 1.6 % below it, and took 878 s on 2 idle cores for 1872
-of its then 3039 bounded runs, now 3423; the limit was 7e10 until the magnitude grid's
+one core at the rate: the bundled example campaign's diagnosis, bounded at 7.31e10 by
+:func:`diagnosis_cost`, is admitted, 2.5 % below it, and took 878 s on 2 idle cores for 1872
+of its then 3039 bounded runs, now 3391; the limit was 7e10 until the magnitude grid's
 continuation added 168 bounded runs, and the pair's partner screen added 80 more and the
 partner's count choice 24 (a fit on top of another effect no longer repeating its best run
-saves 8; the absorber's screened tuning orders add 48); it applies
+saves 8; the partner screen's absorber tuning orders add 16); it applies
 to every kind of request). Both are server
 settings, read from the environment at call time (:func:`budgets`): ``DAMPERSIM_BUDGET``
 and ``DAMPERSIM_AUTOSTART_BUDGET`` in step·DOF, ``DAMPERSIM_MEMORY_BUDGET`` in bytes
@@ -378,7 +378,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     effect" at the calibration factors of each fitted effect (and its held-out check), the
     leading effect fitted again with the calibration (and its held-out check), a pair of
     effects (its partner screened among the other candidates on top of the leading fit, the
-    short springs' count chosen there), the
+    short springs' clearances and the absorber's tuning orders DIAGNOSIS_PARTNER_EXTRA more
+    runs, the short springs' count chosen there), the
     detectability runs of every candidate, and DIAGNOSIS_RAMP_RUNS per ramp. The
     next-test design's runs have their own length (:func:`diagnosis_cost`)."""
     n = max(0, int(n_points))
@@ -397,7 +398,8 @@ def diagnosis_runs(n_points: int, n_candidates: int, n_ramps: int = 0) -> int:
     runs += shortlist * train + held  # "none" at the factors of each fitted effect, its held-out check
     runs += DIAGNOSIS_REFIT_RUNS * train + held  # the leading effect re-calibrated, its held-out check
     runs += DIAGNOSIS_PAIR_RUNS * train + held
-    runs += (int(n_candidates) - 1 + DIAGNOSIS_PARTNER_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train if n_candidates >= 2 else 0
+    if n_candidates >= 2:
+        runs += (int(n_candidates) - 1 + DIAGNOSIS_PARTNER_EXTRA + DIAGNOSIS_CHOICE_RUNS) * train
     runs += DIAGNOSIS_DETECT_RUNS * int(n_candidates) * train
     runs += (DIAGNOSIS_RAMP_RUNS * max(0, int(n_ramps)) + n) if n_ramps else 0  # + the re-run after sizing
     return int(runs)

@@ -42,7 +42,8 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
     ``fit``: the leading single fit (system, factors ``x``, training coefficients ``y``);
     ``namer``: the naming step's :class:`~dampersim.discrepancy.naming.Namer`; eta: the
     learning rate the likelihood is tempered by. The gain sums the candidate's screened
-    shapes with their prior weights (shapes.variants), like the single screen; it is -inf,
+    shapes with their prior weights, like the single screen, over shapes.partner_grid (the
+    single screen's grid and the absorber's tuning orders); it is -inf,
     with the parameter set's own shape ({}), when every run of the candidate on top of the
     leading fit failed or the parameter set refuses it there. Failed runs are recorded
     against the candidate, as its own screen's are: the effect is what made the model fail
@@ -102,8 +103,10 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
         start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
         chosen, mass = namer.choose(second, {"start": start, "shape": screened, "scale": scale},
                                     jac=namer.jac_of(lead_fit), label=label, extra_prior=extra_prior)
+        # its continuous shapes the partner screen does not read (the absorber's damping) as fitted alone
+        unread = set(shapes.SHAPES.get(second, ())) - set(shapes.partner_grid().get(second, {}))
         alone = namer.shape_values(second, models[second]["system"]) if second in models else {}
-        return {**alone, **chosen}, mass
+        return {**{q: v for q, v in alone.items() if q in unread}, **chosen}, mass
     if second in models:
         return namer.shape_values(second, models[second]["system"]), models[second].get("log_mass", 0.0)
     return screened, -math.log(max(1, len(shapes.choices(second))))

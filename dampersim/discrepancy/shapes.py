@@ -10,10 +10,10 @@ short springs act only beyond their clearance; a point below it sees none of the
 screen first reads the effect over a grid of values (:data:`SCREEN_FACTORS`, weighted by the
 same prior; :func:`variants`), and the fit starts from the best of them; a pair's partner
 screen also reads the pendulum's tuning order, whose signature changes sign at an excited
-order (:data:`PARTNER_FACTORS`). The linear screen scales a signature as a whole and so cannot
-tell a spring count from a stiffness: the discrete
-choices (:data:`SCREEN_CHOICES`, equal prior mass each; :func:`choices`) are compared by real
-runs at the same total (:func:`magnitude_at_choice`) before the fit, which holds the best.
+order (:data:`PARTNER_FACTORS`). The linear screen scales a signature as a whole and so
+cannot tell a spring count from a stiffness: the discrete choices (:data:`SCREEN_CHOICES`,
+equal prior mass each; :func:`choices`) are compared by real runs at the same total
+(:func:`magnitude_at_choice`) before the fit, which holds the best.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ SHAPES = {
 #: grid values sees the springs at one and not the other, which a linear fit cannot bridge)
 SCREEN_FACTORS = {"inner_short_springs": {"clearance": (0.5, 0.5 * math.sqrt(2.0), 1.0, math.sqrt(2.0))}}
 #: continuous shapes a pair's partner screen reads besides SCREEN_FACTORS: the pendulum's tuning
-#: order 4 % either side of the library's order 2 as well as at it. The library tunes the
+#: order 4 % either side of the parameter set's (the library's 2.0) as well as at it. The library tunes the
 #: pendulum to order 2.0, an order the drive excites, and there the absorber's effective inertia
 #: at that order, J_a / (1 - (2 / n_t)^2), changes sign with the tuning; a pair holds its second
 #: effect's shape, so the order it is held at is read on top of the first fit. The single
@@ -91,8 +91,12 @@ def variants(name: str, effect, grid=None) -> list:
 
 
 def partner_grid() -> dict:
-    """The shape grid of a pair's partner screen: :data:`SCREEN_FACTORS` and :data:`PARTNER_FACTORS`."""
-    return {**SCREEN_FACTORS, **PARTNER_FACTORS}
+    """The shape grid of a pair's partner screen: :data:`SCREEN_FACTORS` and
+    :data:`PARTNER_FACTORS`, merged per effect (an effect in both gets both axes)."""
+    out = {name: dict(axes) for name, axes in SCREEN_FACTORS.items()}
+    for name, axes in PARTNER_FACTORS.items():
+        out[name] = {**out.get(name, {}), **axes}
+    return out
 
 
 def choices(name: str) -> list:
@@ -153,5 +157,6 @@ def log_ratio(a: float, b: float) -> float:
     return math.log(a / b) if a > 0 and b > 0 else 0.0
 
 
-__all__ = ["SHAPES", "SCREEN_FACTORS", "PARTNER_FACTORS", "partner_grid", "SCREEN_CHOICES", "PER_UNIT", "logsumexp", "renormalised", "variants", "choices",
-           "magnitude_at_choice", "choice_log_mass", "prior_term", "log_ratio"]
+__all__ = ["SHAPES", "SCREEN_FACTORS", "PARTNER_FACTORS", "partner_grid", "SCREEN_CHOICES",
+           "PER_UNIT", "logsumexp", "renormalised", "variants", "choices", "magnitude_at_choice",
+           "choice_log_mass", "prior_term", "log_ratio"]

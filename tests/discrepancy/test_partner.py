@@ -84,18 +84,31 @@ def test_the_partner_is_the_effect_the_leading_fit_leaves_not_its_imitator(monke
 
 
 def test_the_partner_screen_stays_inside_the_counted_runs(monkeypatch):
-    # one run per training point for each other candidate, the short springs at their screened
-    # clearances: within the cost model's bound for the partner screen, which also counts the
-    # absorber's screened tuning orders (here the absorber leads and is not screened)
-    namer = _namer(monkeypatch)
-    partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
-    own = {n: getattr(BASE.effects, n) for n in CANDIDATES}
+    # one run per training point for each other candidate, the short springs at their 4 screened
+    # clearances and the absorber at its 3 tuning orders: the cost model's bound, reached when
+    # neither leads; with the absorber leading, its 2 extra orders are not run
     grid = shapes.partner_grid()
-    extra = sum(len(shapes.variants(n, own[n], grid)) - 1 for n in CANDIDATES if n != LEAD)
-    assert extra == 3  # the short springs' three clearances beyond the library's
-    assert len(namer.calls) == (len(CANDIDATES) - 1 + extra) * len(POINTS)
+    own = {n: getattr(BASE.effects, n) for n in CANDIDATES}
+    assert costs.DIAGNOSIS_PARTNER_EXTRA == sum(len(shapes.variants(n, own[n], grid)) - 1 for n in CANDIDATES)
     bound = (len(CANDIDATES) - 1 + costs.DIAGNOSIS_PARTNER_EXTRA) * len(POINTS)
+    orders = []
+
+    def toy(system):
+        if system.effects.pendulum_absorber.enabled:
+            orders.append(round(system.effects.pendulum_absorber.order, 6))
+        return _toy(system)
+
+    namer = _namer(monkeypatch, toy=toy)
+    lead = naming.with_effect(BASE, TRUE_PARTNER, {"force": 10.0})
+    fit = {"system": lead, "x": np.zeros(6), "y": _toy(lead)}
+    partner.gains(namer, TRUE_PARTNER, fit, CANDIDATES)
+    assert len(namer.calls) == bound
+    assert sorted(set(orders)) == [1.92, 2.0, 2.08]  # both sides of the excited order 2, and at it
+    # the absorber leading: the others only, the short springs' 3 extra clearances among them
+    del namer.calls[:]
+    partner.gains(namer, LEAD, _lead_fit(namer), CANDIDATES)
     assert len(namer.calls) == bound - (len(shapes.variants(LEAD, own[LEAD], grid)) - 1) * len(POINTS)
+    assert len(namer.calls) == (len(CANDIDATES) - 1 + 3) * len(POINTS)
 
 
 def test_a_candidate_whose_runs_fail_on_top_of_the_lead_gains_nothing_and_is_recorded(monkeypatch):
@@ -263,6 +276,21 @@ def test_an_absorber_partner_takes_its_screened_order_and_keeps_its_single_fit_s
     # not fitted alone: the screened order and the set's own damping (held by the fit as the set has it)
     assert partner.shape(namer, "pendulum_absorber", fit, gained, {}, "x", 0.0) == ({"order": 1.92}, 0.0)
     assert not namer.calls
+
+
+def test_the_short_springs_hold_the_set_s_count_when_every_count_run_fails_on_top_of_the_lead(monkeypatch):
+    # the count runs all fail: the pair holds the screened clearance and the parameter set's own
+    # count (Namer.choose), not the count the springs' single fit reached
+    namer = _namer(monkeypatch, fails=lambda runner, s: s.effects.inner_short_springs.enabled
+                   and s.effects.pendulum_absorber.enabled)
+    fit = _lead_fit(namer)
+    alone = naming.with_effect(BASE, OTHER, {"stiffness": 300.0, "count": 3, "clearance": 0.08})
+    assert alone.effects.inner_short_springs.count != BASE.effects.inner_short_springs.count
+    models = {OTHER: {"system": alone, "log_mass": -0.4}}
+    gained = {OTHER: partner.Gain(5.0, {"clearance": 0.0707}, 1.0)}
+    got, _ = partner.shape(namer, OTHER, fit, gained, models, "x", 0.0)
+    assert got.get("count", BASE.effects.inner_short_springs.count) == BASE.effects.inner_short_springs.count
+    assert got["clearance"] == 0.0707
 
 
 def test_the_short_springs_fall_back_to_their_single_fit_when_their_screen_failed(monkeypatch):
