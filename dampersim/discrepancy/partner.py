@@ -99,12 +99,13 @@ def shape(namer, second: str, lead_fit: dict, gained: dict, models: dict, label:
     fitted alone, its best screened shape; a discrete choice not chosen by runs takes its equal
     prior share."""
     g, screened, scale = gained.get(second, Gain(-math.inf, {}, 1.0))
-    if math.isfinite(g) and (second in shapes.partner_grid() or second in shapes.SCREEN_CHOICES):
+    read = shapes.partner_grid().get(second, {})
+    if math.isfinite(g) and (read or second in shapes.SCREEN_CHOICES):
         start = (lead_fit["system"], lead_fit["x"], lead_fit["y"])
         chosen, mass = namer.choose(second, {"start": start, "shape": screened, "scale": scale},
                                     jac=namer.jac_of(lead_fit), label=label, extra_prior=extra_prior)
         # its continuous shapes the partner screen does not read (the absorber's damping) as fitted alone
-        unread = set(shapes.SHAPES.get(second, ())) - set(shapes.partner_grid().get(second, {}))
+        unread = set(shapes.SHAPES.get(second, ())) - set(read)
         alone = namer.shape_values(second, models[second]["system"]) if second in models else {}
         return {**{q: v for q, v in alone.items() if q in unread}, **chosen}, mass
     if second in models:

@@ -38,13 +38,13 @@ SHAPES = {
 #: grid values sees the springs at one and not the other, which a linear fit cannot bridge)
 SCREEN_FACTORS = {"inner_short_springs": {"clearance": (0.5, 0.5 * math.sqrt(2.0), 1.0, math.sqrt(2.0))}}
 #: continuous shapes a pair's partner screen reads besides SCREEN_FACTORS: the pendulum's tuning
-#: order 4 % either side of the parameter set's (the library's 2.0) as well as at it. The library tunes the
-#: pendulum to order 2.0, an order the drive excites, and there the absorber's effective inertia
-#: at that order, J_a / (1 - (2 / n_t)^2), changes sign with the tuning; a pair holds its second
-#: effect's shape, so the order it is held at is read on top of the first fit. The single
-#: screen keeps the library's order: read there at 1.92, 2.0 and 2.08, it chose a detuned start
-#: for the bundled example's absorber, tuned to 2.0, and the diagnosis lost it (docs/discrepancy.md,
-#: Benchmark, "The absorber's tuning order screened on both sides")
+#: order 4 % either side of the parameter set's (the library's 2.0) as well as at it. The
+#: library tunes the pendulum to order 2.0, an order the drive excites, and there the absorber's
+#: effective inertia at that order, J_a / (1 - (2 / n_t)^2), changes sign with the tuning; a pair
+#: holds its second effect's shape, so the order it is held at is read on top of the first fit.
+#: The single screen keeps the library's order: read there at 1.92, 2.0 and 2.08, the bundled
+#: example's absorber (tuned to 2.0) was fitted to 1.959 and the diagnosis lost it
+#: (docs/discrepancy.md, Benchmark, "The absorber's tuning order screened on both sides")
 PARTNER_FACTORS = {"pendulum_absorber": {"order": (0.96, 1.0, 1.04)}}
 #: discrete shapes the screen chooses among, with equal prior mass: 1 to 3 of the inner set's
 #: five pairs carry a short spring. The count is not only a factor on the stiffness: below
@@ -73,12 +73,12 @@ def renormalised(options) -> list:
 
 def variants(name: str, effect, grid=None) -> list:
     """The continuous shape values the screen reads effect ``name`` at: a list of (values
-    {parameter: value}, log prior weight), the weights summing to one over the list. grid:
-    {effect: {parameter: factors}}, default :data:`SCREEN_FACTORS` (the partner screen passes
-    :func:`partner_grid`).
+    {parameter: value}, log prior weight), the weights summing to one over the list.
     ``effect``: the effect's parameters in the parameter set (their values are the grid's
-    centre). An effect without screened shapes has the single variant ({}, 0.0): it is read as
-    the set has it. The discrete choices are not read by the screen (:func:`choices`)."""
+    centre); ``grid``: {effect: {parameter: factors}}, default :data:`SCREEN_FACTORS` (the
+    partner screen passes :func:`partner_grid`). An effect without screened shapes has the
+    single variant ({}, 0.0): it is read as the set has it. The discrete choices are not read
+    by the screen (:func:`choices`)."""
     meta = {p["name"]: p for p in parameters_of(name)}
     out = [({}, 0.0)]
     for q, factors in (SCREEN_FACTORS if grid is None else grid).get(name, {}).items():
