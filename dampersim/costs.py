@@ -326,7 +326,7 @@ DIAGNOSIS_STARTS = 2  # starting points per candidate (calibrated, estimated)
 DIAGNOSIS_SCREEN_EXTRA = 4 - 1
 #: the partner screen's runs beyond one per candidate: the short springs at 4 clearances and the
 #: pendulum absorber at 3 tuning orders (discrepancy.shapes.partner_grid)
-DIAGNOSIS_PARTNER_EXTRA = (4 - 1) + (3 - 1)
+DIAGNOSIS_PARTNER_EXTRA = DIAGNOSIS_SCREEN_EXTRA + (3 - 1)
 #: runs before a shortlisted candidate's fit that choose its discrete shape: the short springs'
 #: 1 to 3 springs (discrepancy.shapes.SCREEN_CHOICES; naming.Namer.choose)
 DIAGNOSIS_CHOICE_RUNS = 3

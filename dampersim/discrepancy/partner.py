@@ -54,13 +54,13 @@ def gains(namer, lead: str, fit: dict, candidates, eta: float = 1.0) -> dict:
     with namer.lik.using(nu):
         r = namer.lik.mvec(namer.train) - namer.lik.vec(fit["y"], namer.train)
     z_lead = selection.linear_screen_evidence(k * r, k * jac, None, fit["x"], PRIOR_LOG_SD)[0]
-    out = {}
+    out, grid = {}, shapes.partner_grid()
     for name in candidates:
         if name == lead:
             continue
         e = info(name)
         scored = []
-        for vals, lw in namer.screen_variants(name, shapes.partner_grid()):
+        for vals, lw in namer.screen_variants(name, grid):
             try:
                 system = with_effect(fit["system"], name, {**vals, e.magnitude: e.magnitudes[1]})
             except ParameterError:  # refused beside the leading effect: not run
