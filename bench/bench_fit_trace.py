@@ -20,7 +20,13 @@ one JSON line per event to ``--trace``:
   not recorded against the effect, and an error in one is written to the event), but they
   are model runs: the case's run count and wall time include them;
 * ``shape_step``: every shape step (the first fits' and the re-calibration's): objective
-  before, and the fit after.
+  before, and the fit after;
+* ``side_fit`` (with ``--side-fits``): after an effect's first fit has taken its shape step,
+  the same fit (magnitude, re-calibration and shape step, from the same start) made again from
+  each given shape instead of the screen's: the fit before and after its shape step. It asks
+  whether another basin of the shape parameters fits the training points better than the one
+  the fit reached. Like the side refits, these fits do not enter the diagnosis but their runs
+  count in the case's run count and wall time.
 
 The wrapping replaces methods of ``dampersim.discrepancy.naming.Namer`` while the benchmark
 runs. The figures of docs/discrepancy.md, "Re-calibrating the screen's leader", were read
@@ -33,6 +39,15 @@ the script warns about a given effect that was never re-calibrated:
     python bench/bench_fit_trace.py --trace t.jsonl \\
         --refit-shapes '{"inner_short_springs": {"screen": {"clearance": 0.05, "count": 3}}}' -- \\
         --only effect/inner_short_springs/typical/s0 --out r.jsonl --no-recommend --workers 1
+
+The absorber's fits from other tunings (docs/discrepancy.md, "The typical absorber's shape
+from other starts"):
+
+    python bench/bench_fit_trace.py --trace t.jsonl --side-fits '{"pendulum_absorber": {"low": {"order": 1.92},
+        "low_damped": {"order": 1.92, "damping": 0.05}, "truth": {"order": 1.945, "damping": 0.0742}}}' -- \\
+        --only effect/pendulum_absorber/typical/s0 --out r.jsonl --no-recommend --workers 1
+
+(the line break inside the quotes is white space in JSON).
 """
 
 from __future__ import annotations
@@ -52,10 +67,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 WRAPPED = ("fit_candidate", "evidence", "refit", "fit_shapes")
 
 
-def install(write, refit_shapes: dict) -> dict:
+def install(write, refit_shapes: dict, side_fits: dict | None = None) -> dict:
     """Wrap Namer's screen-to-fit, evidence, re-calibration and shape steps so that each writes
-    its event through ``write`` (a callable taking a dict). Returns the plain methods
-    ({name: function}) for :func:`uninstall`."""
+    its event through ``write`` (a callable taking a dict); ``refit_shapes`` and ``side_fits``
+    ({effect: {label: shape values}}, :func:`checked_shapes`) name the side re-calibrations and
+    the side fits. Returns the plain methods ({name: function}) for :func:`uninstall`."""
     Namer = naming.Namer
     plain = {attr: getattr(Namer, attr) for attr in WRAPPED}
 
@@ -103,7 +119,22 @@ def install(write, refit_shapes: dict) -> dict:
         before = None if fit is None else float(fit["cost"])
         out = plain["fit_shapes"](self, name, fit)
         write({"event": "shape_step", "name": name, "cost_before": before, "fit": state(self, name, out)})
+        if out is not None and out.get("base") is None and out.get("start") in self.starts:  # a first fit
+            side_fit(self, name, out["start"])
         return out
+
+    def side_fit(self, name, start):
+        kept = dict(self.failures.get(name, {}))
+        for label, shape in (side_fits or {}).get(name, {}).items():
+            event = {"event": "side_fit", "name": name, "from": label, "shape": shape, "start": start}
+            try:
+                side = self.fit(name, start, shape=shape)
+                event["fit"] = state(self, name, side)
+                event["after_shape_step"] = state(self, name, plain["fit_shapes"](self, name, side)) if side else None
+            except Exception as exc:  # a side fit must not end the diagnosis: its error goes to the event
+                event["error"] = f"{type(exc).__name__}: {exc}"
+            write(event)
+        self.failures[name] = kept  # the side fits' failed points are not the effect's
 
     for attr, wrapped in zip(WRAPPED, (fit_candidate, evidence, refit, fit_shapes)):
         setattr(Namer, attr, wrapped)
@@ -116,8 +147,8 @@ def uninstall(plain: dict) -> None:
         setattr(naming.Namer, attr, method)
 
 
-def checked_shapes(text: str) -> dict:
-    """{effect: {label: {shape values}}} from ``--refit-shapes`` (one set of values per effect, or
+def checked_shapes(text: str, option: str = "--refit-shapes") -> dict:
+    """{effect: {label: {shape values}}} from ``option`` (one set of values per effect, or
     several labelled ones), each checked against the default parameter set before any run;
     raises ValueError with what is accepted."""
     accepted = ('accepted is an object of effect name -> shape values, or -> labels -> shape values, e.g. '
@@ -125,21 +156,21 @@ def checked_shapes(text: str) -> dict:
     try:
         given = json.loads(text)
     except ValueError as exc:
-        raise ValueError(f"--refit-shapes: not JSON ({exc}); {accepted}") from None
+        raise ValueError(f"{option}: not JSON ({exc}); {accepted}") from None
     if not isinstance(given, dict) or not all(isinstance(v, dict) for v in given.values()):
-        raise ValueError(f"--refit-shapes: {accepted}")
+        raise ValueError(f"{option}: {accepted}")
     out = {}
     for name, values in given.items():
         try:
             info(name)
         except InputError:
-            raise ValueError(f"--refit-shapes: {name!r} is not an effect of the library; {accepted}") from None
+            raise ValueError(f"{option}: {name!r} is not an effect of the library; {accepted}") from None
         sets = values if values and all(isinstance(v, dict) for v in values.values()) else {"given": values}
         for label, shape in sets.items():
             try:
                 with_effect(default_parameters(), name, shape)
             except (ParameterError, TypeError, ValueError, AttributeError) as exc:
-                raise ValueError(f"--refit-shapes: {name} {label}: {exc}") from None
+                raise ValueError(f"{option}: {name} {label}: {exc}") from None
         out[name] = sets
     return out
 
@@ -149,10 +180,13 @@ def main(argv=None) -> int:
     ap.add_argument("--trace", required=True, help="JSON lines file the events are appended to")
     ap.add_argument("--refit-shapes", default="{}",
                     help='side re-calibrations: {effect: {shape values}} or {effect: {label: {shape values}}}')
+    ap.add_argument("--side-fits", default="{}",
+                    help="side fits after an effect's first shape step, from these shapes (same form)")
     ap.add_argument("bench_args", nargs=argparse.REMAINDER, help="-- then bench_discrepancy.py's arguments")
     args = ap.parse_args(argv)
     try:
         shapes = checked_shapes(args.refit_shapes)
+        sides = checked_shapes(args.side_fits, "--side-fits")
     except ValueError as exc:
         ap.error(str(exc))
     rest = args.bench_args[1:] if args.bench_args[:1] == ["--"] else args.bench_args
@@ -162,14 +196,17 @@ def main(argv=None) -> int:
     argv0 = sys.argv
     with open(args.trace, "a", encoding="utf-8") as fh:
         refitted = set()  # the effects re-calibrated: a given side shape of any other never ran
+        side_fitted = set()  # the effects with a first fit: a given side fit of any other never ran
 
         def write(event):
             if event["event"] == "refit":
                 refitted.add(event["name"])
+            if event["event"] == "side_fit":
+                side_fitted.add(event["name"])
             fh.write(json.dumps(event) + "\n")
             fh.flush()
 
-        plain = install(write, shapes)
+        plain = install(write, shapes, sides)
         sys.argv = [os.path.join(HERE, "bench_discrepancy.py"), *rest]
         code = 0
         try:
@@ -182,6 +219,9 @@ def main(argv=None) -> int:
     for name in sorted(set(shapes) - refitted):
         print(f"note: {name} was never re-calibrated (Naming 3b chose another effect, or no fit needed it): "
               "its --refit-shapes did not run", file=sys.stderr)
+    for name in sorted(set(sides) - side_fitted):
+        print(f"note: {name} had no first fit (not shortlisted, or every fit failed): its --side-fits did not run",
+              file=sys.stderr)
     return code
 
 

@@ -82,6 +82,31 @@ def test_the_shape_step_is_traced_with_the_objective_before_it(namer, events):  
     assert event["fit"]["cost"] == out["cost"] <= before
 
 
+def test_a_first_fits_shape_step_is_followed_by_the_side_fits_from_the_given_shapes(namer, events):  # noqa: F811
+    first = namer.fit(NAME, "calibrated")
+    plain = naming.Namer.fit_shapes(namer, NAME, dict(first))
+    runs_plain = len(namer.calls)
+    trace.install(events.append, {}, {NAME: {"low": {"order": 1.92}, "bad": {"order": -1.0}}})
+    traced = naming.Namer.fit_shapes(namer, NAME, dict(first))
+    assert traced["cost"] == plain["cost"] and np.array_equal(traced["x"], plain["x"])  # the fit is left alone
+    step, low, bad = events
+    assert step["event"] == "shape_step" and low["event"] == bad["event"] == "side_fit"
+    assert low["from"] == "low" and low["start"] == "calibrated"
+    # the side fit held the given order through its magnitude search, then took its own shape step
+    assert low["fit"]["shape"]["order"] == 1.92 and low["after_shape_step"]["cost"] <= low["fit"]["cost"]
+    assert len(namer.calls) > 2 * runs_plain  # its runs are real
+    assert "error" in bad and "order" in bad["error"] and "fit" not in bad
+    json.dumps(events)
+
+
+def test_no_side_fit_runs_after_a_refits_or_a_pairs_shape_step(namer, events):  # noqa: F811
+    trace.install(events.append, {}, {NAME: {"low": {"order": 1.92}}})
+    first = namer.fit(NAME, "calibrated")
+    naming.Namer.fit_shapes(namer, NAME, dict(first, start="refit"))
+    naming.Namer.fit_shapes(namer, NAME, dict(first, base=first["system"]))  # on top of another effect
+    assert [e["event"] for e in events] == ["shape_step", "shape_step"]
+
+
 def test_the_traced_evidence_logs_each_training_points_reduced_chi2(namer, events):  # noqa: F811
     first = _first_fit(namer, 0.0016)
     fit = naming.Namer.refit(namer, NAME, first)
