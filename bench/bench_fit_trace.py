@@ -21,6 +21,11 @@ one JSON line per event to ``--trace``:
   are model runs: the case's run count and wall time include them;
 * ``shape_step``: every shape step (the first fits' and the re-calibration's): objective
   before, and the fit after;
+* with ``--fresh-columns``, the ``evidence`` event of a single effect whose shape step moved
+  it also carries ``fresh_columns``: its log evidence and Laplace intervals (90 %, before the
+  jackknife) as the diagnosis reads them, with the magnitude's and shape parameters'
+  columns from where the fit started its shape step, and again with those columns taken
+  afresh at the fit's final point (1 + shapes runs per training point, once per fit);
 * ``side_fit`` (with ``--side-fits``): after an effect's first fit has taken its shape step,
   the same fit (magnitude, re-calibration and shape step, from the same start) made again from
   each given shape instead of the screen's: the fit before and after its shape step. It asks
@@ -54,12 +59,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import runpy
 import sys
 
+import numpy as np
+
 from dampersim.discrepancy import naming
-from dampersim.discrepancy.effects import info, with_effect
+from dampersim.discrepancy.selection import Z90
+from dampersim.discrepancy.effects import clip_to_range, info, parameters_of, with_effect
 from dampersim.errors import InputError, ParameterError
 from dampersim.parameters import default_parameters
 
@@ -67,13 +76,15 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 WRAPPED = ("fit_candidate", "evidence", "refit", "fit_shapes")
 
 
-def install(write, refit_shapes: dict, side_fits: dict | None = None) -> dict:
+def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_columns: bool = False) -> dict:
     """Wrap Namer's screen-to-fit, evidence, re-calibration and shape steps so that each writes
     its event through ``write`` (a callable taking a dict); ``refit_shapes`` and ``side_fits``
     ({effect: {label: shape values}}, :func:`checked_shapes`) name the side re-calibrations and
-    the side fits. Returns the plain methods ({name: function}) for :func:`uninstall`."""
+    the side fits; ``fresh_columns`` adds the evidence read with columns at the fit's final
+    point. Returns the plain methods ({name: function}) for :func:`uninstall`."""
     Namer = naming.Namer
     plain = {attr: getattr(Namer, attr) for attr in WRAPPED}
+    refreshed = {}  # (fit id, magnitude, shapes) -> the columns at that fit's final point
 
     def state(self, name, fit) -> dict | None:
         if fit is None:
@@ -92,10 +103,53 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None) -> dict:
     def evidence(self, fit, names, bias=None, eta: float = 1.0):
         out = plain["evidence"](self, fit, names, bias, eta)
         chi2 = self.lik.point_chi2(fit["y"], self.train, fit.get("nuisance")) / (2 * len(self.lik.orders))
-        write({"event": "evidence", "effects": list(names), "start": fit.get("start"), "eta": float(eta),
-               "log_evidence": float(out[0]), "cost": float(fit["cost"]), "m": float(fit.get("m") or 0.0),
-               "point_reduced_chi2": {p.id: float(c) for p, c in zip(self.points, chi2)}})
+        event = {"event": "evidence", "effects": list(names), "start": fit.get("start"), "eta": float(eta),
+                 "log_evidence": float(out[0]), "cost": float(fit["cost"]), "m": float(fit.get("m") or 0.0),
+                 "point_reduced_chi2": {p.id: float(c) for p, c in zip(self.points, chi2)}}
+        if fresh_columns and len(names) == 1 and fit.get("shapes") and fit.get("base") is None:
+            event["fresh_columns"] = read_fresh(self, names[0], fit, out, bias, eta)
+        write(event)
         return out
+
+    def columns_at(self, name, fit):
+        """The magnitude's and the stepped shapes' standardised columns at the fit's final point, as
+        Namer.fit and Namer.fit_shapes form them where they run; None when a derivative run fails."""
+        moved, step = naming.fd_magnitude(name, fit["m"])
+        y, failed = self.runs(with_effect(fit["system"], name, {info(name).magnitude: moved}), name)
+        cols = [self.w((y - fit["y"]) / step)]
+        meta = {p["name"]: p for p in parameters_of(name)}
+        held = self.shape_values(name, fit["system"])
+        for q in fit["shape_start"]:
+            v = float(held[q])
+            up = clip_to_range(v * math.exp(naming.SHAPE_FD_STEP), meta[q])
+            yq, bad = self.runs(with_effect(fit["system"], name, {q: up}), name)
+            failed = failed or bad or up == v
+            cols.append(None if up == v else self.w((yq - fit["y"]) / math.log(up / v)))
+        return None if failed else cols
+
+    def read_fresh(self, name, fit, out, bias, eta) -> dict:
+        key = (id(fit), float(fit["m"]), tuple(sorted(fit["shapes"].items())))
+        if key not in refreshed:
+            kept = dict(self.failures.get(name, {}))
+            refreshed[key] = columns_at(self, name, fit)
+            self.failures[name] = kept  # these runs' failed points are not the effect's
+        cols = refreshed[key]
+        if cols is None:
+            return {"error": "a derivative run at the final point failed (or a shape sits at its bound)"}
+        alt = plain["evidence"](self, dict(fit, columns=cols), [name], bias, eta)
+        held = self.shape_values(name, fit["system"])
+        values = {info(name).magnitude: float(fit["m"]), **{q: float(held[q]) for q in fit["shape_start"]}}
+        n = self.jac.shape[1]
+
+        def laplace(cov):  # value, 90 % low and high (as selection reads them), standard deviation in log
+            sd = np.sqrt(np.diag(cov)[n:n + len(values)])
+            return {q: [v, v * math.exp(-Z90 * s), v * math.exp(Z90 * s), float(s)]
+                    for (q, v), s in zip(values.items(), sd)}
+
+        return {"log_evidence_as_run": float(out[0]), "log_evidence": float(alt[0]),
+                "laplace_as_run": laplace(out[1]), "laplace": laplace(alt[1]),
+                "column_norms_as_run": [float(np.linalg.norm(c)) for c in fit["columns"]],
+                "column_norms": [float(np.linalg.norm(c)) for c in cols]}
 
     def refit(self, name, fit):
         out = plain["refit"](self, name, fit)
@@ -182,6 +236,8 @@ def main(argv=None) -> int:
                     help='side re-calibrations: {effect: {shape values}} or {effect: {label: {shape values}}}')
     ap.add_argument("--side-fits", default="{}",
                     help="side fits after an effect's first shape step, from these shapes (same form)")
+    ap.add_argument("--fresh-columns", action="store_true",
+                    help="read a shape-stepped single effect's evidence also with columns at its final point")
     ap.add_argument("bench_args", nargs=argparse.REMAINDER, help="-- then bench_discrepancy.py's arguments")
     args = ap.parse_args(argv)
     try:
@@ -206,7 +262,7 @@ def main(argv=None) -> int:
             fh.write(json.dumps(event) + "\n")
             fh.flush()
 
-        plain = install(write, shapes, sides)
+        plain = install(write, shapes, sides, args.fresh_columns)
         sys.argv = [os.path.join(HERE, "bench_discrepancy.py"), *rest]
         code = 0
         try:

@@ -11,7 +11,7 @@ import pytest
 from dampersim.discrepancy import naming
 
 from tests.discrepancy.benches import load_bench
-from tests.discrepancy.test_refit import NAME, _first_fit, namer  # noqa: F401  (namer: the fixture)
+from tests.discrepancy.test_refit import NAME, _first_fit, _toy, namer  # noqa: F401  (namer: the fixture)
 
 trace = load_bench("bench_fit_trace")
 
@@ -105,6 +105,33 @@ def test_no_side_fit_runs_after_a_refits_or_a_pairs_shape_step(namer, events):  
     naming.Namer.fit_shapes(namer, NAME, dict(first, start="refit"))
     naming.Namer.fit_shapes(namer, NAME, dict(first, base=first["system"]))  # on top of another effect
     assert [e["event"] for e in events] == ["shape_step", "shape_step"]
+
+
+def test_fresh_columns_read_the_evidence_with_derivatives_at_the_fits_final_point(namer, events):  # noqa: F811
+    fit = naming.Namer.fit_shapes(namer, NAME, namer.fit(NAME, "calibrated"))
+    assert fit["shapes"]  # the step moved the fit (the toy's factors and magnitude)
+    fit.update({"effects": [NAME], "columns": [fit["column"], *fit["shape_columns"]],
+                "nuisance": namer.lik.profile(fit["y"], namer.train)[1]})
+    plain = naming.Namer.evidence(namer, fit, [NAME])
+    untraced = trace.install(events.append, {}, {}, fresh_columns=True)
+    runs = len(namer.calls)
+    log_z, cov = naming.Namer.evidence(namer, fit, [NAME])
+    assert log_z == plain[0] and np.array_equal(cov, plain[1])  # the diagnosis reads what it read
+    per_run = len(namer.points)  # the toy counts a call per point
+    assert len(namer.calls) == runs + per_run * (1 + len(fit["shape_start"]))  # one run per derivative
+    naming.Namer.evidence(namer, fit, [NAME], eta=0.5)
+    assert len(namer.calls) == runs + per_run * (1 + len(fit["shape_start"]))  # read again without runs
+    fresh = events[0]["fresh_columns"]
+    # independently: the magnitude's column by a finite difference at the final point (the toy ignores
+    # the shapes, so their columns are zero)
+    moved, step = naming.fd_magnitude(NAME, fit["m"])
+    col = namer.w((_toy(naming.with_effect(fit["system"], NAME, {"inertia": moved})) - fit["y"]) / step)
+    zeros = [np.zeros_like(col)] * len(fit["shape_start"])
+    expected = untraced["evidence"](namer, dict(fit, columns=[col, *zeros]), [NAME])
+    assert fresh["log_evidence"] == pytest.approx(expected[0], rel=1e-12)
+    assert fresh["log_evidence_as_run"] == plain[0] and fresh["log_evidence"] != plain[0]
+    low, high = fresh["laplace"]["inertia"][1:3]
+    assert low < fit["m"] < high and set(fresh["laplace"]) == {"inertia", *fit["shape_start"]}
 
 
 def test_the_traced_evidence_logs_each_training_points_reduced_chi2(namer, events):  # noqa: F811
