@@ -23,12 +23,15 @@ one JSON line per event to ``--trace``:
   before, and the fit after;
 * with ``--fresh-columns``, the ``evidence`` event of a single effect whose shape step moved
   it also carries ``fresh_columns``: its log evidence and Laplace intervals (90 %, before the
-  jackknife) as the diagnosis reads them, with the magnitude's and shape parameters'
-  columns from where the fit started its shape step, and again with those columns taken
-  afresh at the fit's final point (1 + shapes runs per training point, once per fit);
+  jackknife) as the diagnosis reads them, with the shape parameters' columns from where the
+  fit started its shape step and the magnitude's from its fit (Namer.fit's, or the
+  re-calibration's last iteration), and again with these columns taken afresh at the fit's
+  final point (1 + shapes runs per training point, once per fit). The calibration factors'
+  columns are not refreshed;
 * ``side_fit`` (with ``--side-fits``): after an effect's first fit has taken its shape step,
   the same fit (magnitude, re-calibration and shape step, from the same start) made again from
-  each given shape instead of the screen's: the fit before and after its shape step. It asks
+  each given shape instead of the screen's (a discrete shape such as the short springs' count
+  is the set's unless given): the fit before and after its shape step. It asks
   whether another basin of the shape parameters fits the training points better than the one
   the fit reached. Like the side refits, these fits do not enter the diagnosis but their runs
   count in the case's run count and wall time.
@@ -67,8 +70,8 @@ import sys
 import numpy as np
 
 from dampersim.discrepancy import naming
-from dampersim.discrepancy.selection import Z90
 from dampersim.discrepancy.effects import clip_to_range, info, parameters_of, with_effect
+from dampersim.discrepancy.selection import Z90
 from dampersim.errors import InputError, ParameterError
 from dampersim.parameters import default_parameters
 
@@ -84,7 +87,7 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_colu
     point. Returns the plain methods ({name: function}) for :func:`uninstall`."""
     Namer = naming.Namer
     plain = {attr: getattr(Namer, attr) for attr in WRAPPED}
-    refreshed = {}  # (fit id, magnitude, shapes) -> the columns at that fit's final point
+    refreshed = {}  # (fit id, magnitude, shapes) -> (the fit, its columns at its final point, zeroed)
 
     def state(self, name, fit) -> dict | None:
         if fit is None:
@@ -111,45 +114,50 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_colu
         write(event)
         return out
 
-    def columns_at(self, name, fit):
-        """The magnitude's and the stepped shapes' standardised columns at the fit's final point, as
-        Namer.fit and Namer.fit_shapes form them where they run; None when a derivative run fails."""
+    def columns_at(self, name, fit) -> tuple:
+        """(columns, zeroed): the magnitude's and the stepped shapes' standardised columns at the
+        fit's final point, formed as Namer.fit and Namer.fit_shapes form them (a column whose run
+        fails, or whose shape sits at its bound, is zero there as in the library), and the
+        parameters whose column is zero."""
         moved, step = naming.fd_magnitude(name, fit["m"])
         y, failed = self.runs(with_effect(fit["system"], name, {info(name).magnitude: moved}), name)
-        cols = [self.w((y - fit["y"]) / step)]
+        zero = np.zeros_like(fit["column"])
+        cols, zeroed = [zero if failed else self.w((y - fit["y"]) / step)], [info(name).magnitude] if failed else []
         meta = {p["name"]: p for p in parameters_of(name)}
         held = self.shape_values(name, fit["system"])
         for q in fit["shape_start"]:
             v = float(held[q])
             up = clip_to_range(v * math.exp(naming.SHAPE_FD_STEP), meta[q])
             yq, bad = self.runs(with_effect(fit["system"], name, {q: up}), name)
-            failed = failed or bad or up == v
-            cols.append(None if up == v else self.w((yq - fit["y"]) / math.log(up / v)))
-        return None if failed else cols
+            cols.append(zero if bad or up == v else self.w((yq - fit["y"]) / math.log(up / v)))
+            zeroed += [q] if bad or up == v else []
+        return cols, zeroed
 
     def read_fresh(self, name, fit, out, bias, eta) -> dict:
+        as_run = {"log_evidence_as_run": float(out[0]),
+                  "column_norms_as_run": [float(np.linalg.norm(c)) for c in fit["columns"]]}
         key = (id(fit), float(fit["m"]), tuple(sorted(fit["shapes"].items())))
-        if key not in refreshed:
-            kept = dict(self.failures.get(name, {}))
-            refreshed[key] = columns_at(self, name, fit)
+        kept = dict(self.failures.get(name, {}))
+        try:
+            if key not in refreshed or refreshed[key][0] is not fit:  # the fit is held: its id is not reused
+                refreshed[key] = fit, *columns_at(self, name, fit)
+            _, cols, zeroed = refreshed[key]
+            alt = plain["evidence"](self, dict(fit, columns=cols), [name], bias, eta)
+        except Exception as exc:  # the read must not end the diagnosis: its error goes to the event
+            return {**as_run, "error": f"{type(exc).__name__}: {exc}"}
+        finally:
             self.failures[name] = kept  # these runs' failed points are not the effect's
-        cols = refreshed[key]
-        if cols is None:
-            return {"error": "a derivative run at the final point failed (or a shape sits at its bound)"}
-        alt = plain["evidence"](self, dict(fit, columns=cols), [name], bias, eta)
         held = self.shape_values(name, fit["system"])
         values = {info(name).magnitude: float(fit["m"]), **{q: float(held[q]) for q in fit["shape_start"]}}
         n = self.jac.shape[1]
 
         def laplace(cov):  # value, 90 % low and high (as selection reads them), standard deviation in log
-            sd = np.sqrt(np.diag(cov)[n:n + len(values)])
+            sd = np.sqrt(np.maximum(np.diag(cov)[n:n + len(values)], 0.0))
             return {q: [v, v * math.exp(-Z90 * s), v * math.exp(Z90 * s), float(s)]
                     for (q, v), s in zip(values.items(), sd)}
 
-        return {"log_evidence_as_run": float(out[0]), "log_evidence": float(alt[0]),
-                "laplace_as_run": laplace(out[1]), "laplace": laplace(alt[1]),
-                "column_norms_as_run": [float(np.linalg.norm(c)) for c in fit["columns"]],
-                "column_norms": [float(np.linalg.norm(c)) for c in cols]}
+        return {**as_run, "log_evidence": float(alt[0]), "laplace_as_run": laplace(out[1]), "laplace": laplace(alt[1]),
+                "column_norms": [float(np.linalg.norm(c)) for c in cols], "zeroed": zeroed}
 
     def refit(self, name, fit):
         out = plain["refit"](self, name, fit)
@@ -178,6 +186,8 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_colu
         return out
 
     def side_fit(self, name, start):
+        if not (side_fits or {}).get(name):
+            return
         kept = dict(self.failures.get(name, {}))
         for label, shape in (side_fits or {}).get(name, {}).items():
             event = {"event": "side_fit", "name": name, "from": label, "shape": shape, "start": start}
@@ -276,8 +286,8 @@ def main(argv=None) -> int:
         print(f"note: {name} was never re-calibrated (Naming 3b chose another effect, or no fit needed it): "
               "its --refit-shapes did not run", file=sys.stderr)
     for name in sorted(set(sides) - side_fitted):
-        print(f"note: {name} had no first fit (not shortlisted, or every fit failed): its --side-fits did not run",
-              file=sys.stderr)
+        print(f"note: {name} had no first fit (not shortlisted, every fit failed, or no naming ran): "
+              "its --side-fits did not run", file=sys.stderr)
     return code
 
 

@@ -3,15 +3,16 @@ test_refit.py (smooth stand-in runs with known answers): the traced steps return
 plain ones return, and the events carry the figures the docs read from them."""
 
 import json
+import math
 import sys
 
 import numpy as np
 import pytest
 
-from dampersim.discrepancy import naming
+from dampersim.discrepancy import naming, selection
 
 from tests.discrepancy.benches import load_bench
-from tests.discrepancy.test_refit import NAME, _first_fit, _toy, namer  # noqa: F401  (namer: the fixture)
+from tests.discrepancy.test_refit import NAME, _first_fit, namer  # noqa: F401  (namer: the fixture)
 
 trace = load_bench("bench_fit_trace")
 
@@ -92,8 +93,9 @@ def test_a_first_fits_shape_step_is_followed_by_the_side_fits_from_the_given_sha
     step, low, bad = events
     assert step["event"] == "shape_step" and low["event"] == bad["event"] == "side_fit"
     assert low["from"] == "low" and low["start"] == "calibrated"
-    # the side fit held the given order through its magnitude search, then took its own shape step
-    assert low["fit"]["shape"]["order"] == 1.92 and low["after_shape_step"]["cost"] <= low["fit"]["cost"]
+    # the side fit held the given order through its magnitude search, then took its own shape step (the toy
+    # ignores the order, so the step goes to the prior's centre, the set's 2.0)
+    assert low["fit"]["shape"]["order"] == 1.92 and low["after_shape_step"]["shape"]["order"] != 1.92
     assert len(namer.calls) > 2 * runs_plain  # its runs are real
     assert "error" in bad and "order" in bad["error"] and "fit" not in bad
     json.dumps(events)
@@ -107,11 +109,29 @@ def test_no_side_fit_runs_after_a_refits_or_a_pairs_shape_step(namer, events):  
     assert [e["event"] for e in events] == ["shape_step", "shape_step"]
 
 
-def test_fresh_columns_read_the_evidence_with_derivatives_at_the_fits_final_point(namer, events):  # noqa: F811
+def _order_dependent(namer, slope=3.0):
+    """Make the toy's coefficients depend on the absorber's order too (the toy alone ignores the
+    shapes), so that a shape column has a value to check."""
+    runs = namer.runs
+
+    def with_order(system, name, points=None):
+        y, failed = runs(system, name, points)
+        return y + slope * math.log(system.effects.pendulum_absorber.order / 2.0), failed
+
+    namer.runs = with_order
+
+
+def _stepped_fit(namer):
     fit = naming.Namer.fit_shapes(namer, NAME, namer.fit(NAME, "calibrated"))
-    assert fit["shapes"]  # the step moved the fit (the toy's factors and magnitude)
+    assert fit["shapes"]  # the step moved the fit
     fit.update({"effects": [NAME], "columns": [fit["column"], *fit["shape_columns"]],
                 "nuisance": namer.lik.profile(fit["y"], namer.train)[1]})
+    return fit
+
+
+def test_fresh_columns_read_the_evidence_with_derivatives_at_the_fits_final_point(namer, events):  # noqa: F811
+    _order_dependent(namer)
+    fit = _stepped_fit(namer)
     plain = naming.Namer.evidence(namer, fit, [NAME])
     untraced = trace.install(events.append, {}, {}, fresh_columns=True)
     runs = len(namer.calls)
@@ -122,16 +142,56 @@ def test_fresh_columns_read_the_evidence_with_derivatives_at_the_fits_final_poin
     naming.Namer.evidence(namer, fit, [NAME], eta=0.5)
     assert len(namer.calls) == runs + per_run * (1 + len(fit["shape_start"]))  # read again without runs
     fresh = events[0]["fresh_columns"]
-    # independently: the magnitude's column by a finite difference at the final point (the toy ignores
-    # the shapes, so their columns are zero)
+    # independently: each column by its finite difference at the final point
     moved, step = naming.fd_magnitude(NAME, fit["m"])
-    col = namer.w((_toy(naming.with_effect(fit["system"], NAME, {"inertia": moved})) - fit["y"]) / step)
-    zeros = [np.zeros_like(col)] * len(fit["shape_start"])
-    expected = untraced["evidence"](namer, dict(fit, columns=[col, *zeros]), [NAME])
+    y_m, _ = namer.runs(naming.with_effect(fit["system"], NAME, {"inertia": moved}), NAME)
+    cols = [namer.w((y_m - fit["y"]) / step)]
+    eff = fit["system"].effects.pendulum_absorber
+    for q in fit["shape_start"]:
+        v = getattr(eff, q)
+        y_q, _ = namer.runs(naming.with_effect(fit["system"], NAME, {q: v * math.exp(naming.SHAPE_FD_STEP)}), NAME)
+        cols.append(namer.w((y_q - fit["y"]) / naming.SHAPE_FD_STEP))
+    assert np.linalg.norm(cols[1]) > 0  # the order's column is not trivially zero
+    expected = untraced["evidence"](namer, dict(fit, columns=cols), [NAME])
     assert fresh["log_evidence"] == pytest.approx(expected[0], rel=1e-12)
     assert fresh["log_evidence_as_run"] == plain[0] and fresh["log_evidence"] != plain[0]
-    low, high = fresh["laplace"]["inertia"][1:3]
-    assert low < fit["m"] < high and set(fresh["laplace"]) == {"inertia", *fit["shape_start"]}
+    n = namer.jac.shape[1]  # the calibration factors come first, then the magnitude, then the shapes
+    values = {"inertia": fit["m"], **{q: getattr(eff, q) for q in fit["shape_start"]}}
+    assert list(fresh["laplace"]) == list(values) and fresh["zeroed"] == []
+    for i, (q, v) in enumerate(values.items()):
+        want = selection.interval90(math.log(v), math.sqrt(expected[1][n + i, n + i]))
+        assert fresh["laplace"][q][1:3] == pytest.approx(want, rel=1e-9), q
+        as_run = selection.interval90(math.log(v), math.sqrt(plain[1][n + i, n + i]))
+        assert fresh["laplace_as_run"][q][1:3] == pytest.approx(as_run, rel=1e-9), q
+    json.dumps(events)
+
+
+def test_a_failed_fresh_derivative_is_a_zero_column_and_not_the_effects_failure(namer, events):  # noqa: F811
+    fit = _stepped_fit(namer)
+    trace.install(events.append, {}, {}, fresh_columns=True)
+    namer.runner.fail_above = fit["m"] * 1.01  # the magnitude's derivative run fails, nothing else
+    before = dict(namer.failures.get(NAME, {}))
+    naming.Namer.evidence(namer, fit, [NAME])
+    fresh = events[0]["fresh_columns"]
+    assert fresh["zeroed"] == ["inertia"] and fresh["column_norms"][0] == 0.0
+    assert namer.failures.get(NAME, {}) == before
+
+
+def test_a_side_fits_failed_points_are_not_recorded_against_the_effect(namer, events):  # noqa: F811
+    first = namer.fit(NAME, "calibrated")
+    runs = namer.runs
+
+    def failing_side(system, name, points=None):  # a run from the side shape fails at the first point
+        y, failed = runs(system, name, points)
+        if system.effects.pendulum_absorber.order == 1.92:
+            namer._record(name, {0: "side run failed"}, namer.points if points is None else points)
+        return y, failed
+
+    namer.runs = failing_side
+    trace.install(events.append, {}, {NAME: {"low": {"order": 1.92}}})
+    before = dict(namer.failures.get(NAME, {}))
+    naming.Namer.fit_shapes(namer, NAME, first)
+    assert events[-1]["event"] == "side_fit" and namer.failures[NAME] == before == {}
 
 
 def test_the_traced_evidence_logs_each_training_points_reduced_chi2(namer, events):  # noqa: F811
