@@ -48,8 +48,9 @@ the script warns about a given effect that was never re-calibrated:
         --refit-shapes '{"inner_short_springs": {"screen": {"clearance": 0.05, "count": 3}}}' -- \\
         --only effect/inner_short_springs/typical/s0 --out r.jsonl --no-recommend --workers 1
 
-The absorber's fits from other tunings (docs/discrepancy.md, "The typical absorber's shape
-from other starts"):
+The absorber's fits from other tunings (docs/discrepancy.md, "The typical absorber from other
+tunings"; "The intervals with the derivatives taken after the shape step" adds
+``--fresh-columns`` instead of ``--side-fits``):
 
     python bench/bench_fit_trace.py --trace t.jsonl --side-fits '{"pendulum_absorber": {"low": {"order": 1.92},
         "low_damped": {"order": 1.92, "damping": 0.05}, "truth": {"order": 1.945, "damping": 0.0742}}}' -- \\
