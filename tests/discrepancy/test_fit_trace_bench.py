@@ -45,17 +45,23 @@ def test_the_traced_refit_returns_the_plain_one_and_logs_the_side_refits(namer, 
     json.dumps(events)  # every event serialises
 
 
-def test_a_side_refits_failed_points_are_not_recorded_against_the_effect(namer, events):  # noqa: F811
-    first = _first_fit(namer, 0.0016)
+def _failing_at_order(namer, order):
+    """Make every run at the absorber's ``order`` record a failure at its first point (as a side
+    shape whose runs fail would)."""
     runs = namer.runs
 
-    def failing_side(system, name, points=None):  # a run from the side shape fails at the first point
+    def failing_side(system, name, points=None):
         y, failed = runs(system, name, points)
-        if system.effects.pendulum_absorber.order == 2.1:
+        if system.effects.pendulum_absorber.order == order:
             namer._record(name, {0: "side run failed"}, namer.points if points is None else points)
         return y, failed
 
     namer.runs = failing_side
+
+
+def test_a_side_refits_failed_points_are_not_recorded_against_the_effect(namer, events):  # noqa: F811
+    first = _first_fit(namer, 0.0016)
+    _failing_at_order(namer, 2.1)
     naming.Namer.refit(namer, NAME, first)
     before = dict(namer.failures.get(NAME, {}))
     trace.install(events.append, {NAME: {"other": {"order": 2.1, "damping": 0.03}}})
@@ -179,15 +185,7 @@ def test_a_failed_fresh_derivative_is_a_zero_column_and_not_the_effects_failure(
 
 def test_a_side_fits_failed_points_are_not_recorded_against_the_effect(namer, events):  # noqa: F811
     first = namer.fit(NAME, "calibrated")
-    runs = namer.runs
-
-    def failing_side(system, name, points=None):  # a run from the side shape fails at the first point
-        y, failed = runs(system, name, points)
-        if system.effects.pendulum_absorber.order == 1.92:
-            namer._record(name, {0: "side run failed"}, namer.points if points is None else points)
-        return y, failed
-
-    namer.runs = failing_side
+    _failing_at_order(namer, 1.92)
     trace.install(events.append, {}, {NAME: {"low": {"order": 1.92}}})
     before = dict(namer.failures.get(NAME, {}))
     naming.Namer.fit_shapes(namer, NAME, first)
