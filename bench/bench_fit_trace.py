@@ -72,7 +72,7 @@ import numpy as np
 
 from dampersim.discrepancy import naming
 from dampersim.discrepancy.effects import clip_to_range, info, parameters_of, with_effect
-from dampersim.discrepancy.selection import Z90
+from dampersim.discrepancy.selection import interval90
 from dampersim.errors import InputError, ParameterError
 from dampersim.parameters import default_parameters
 
@@ -152,10 +152,9 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_colu
         values = {info(name).magnitude: float(fit["m"]), **{q: float(held[q]) for q in fit["shape_start"]}}
         n = self.jac.shape[1]
 
-        def laplace(cov):  # value, 90 % low and high (as selection reads them), standard deviation in log
+        def laplace(cov):  # value, 90 % low and high, standard deviation in log
             sd = np.sqrt(np.maximum(np.diag(cov)[n:n + len(values)], 0.0))
-            return {q: [v, v * math.exp(-Z90 * s), v * math.exp(Z90 * s), float(s)]
-                    for (q, v), s in zip(values.items(), sd)}
+            return {q: [v, *interval90(math.log(v), float(s)), float(s)] for (q, v), s in zip(values.items(), sd)}
 
         return {**as_run, "log_evidence": float(alt[0]), "laplace_as_run": laplace(out[1]), "laplace": laplace(alt[1]),
                 "column_norms": [float(np.linalg.norm(c)) for c in cols], "zeroed": zeroed}
@@ -187,10 +186,11 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_colu
         return out
 
     def side_fit(self, name, start):
-        if not (side_fits or {}).get(name):
+        given = (side_fits or {}).get(name)
+        if not given:
             return
         kept = dict(self.failures.get(name, {}))
-        for label, shape in (side_fits or {}).get(name, {}).items():
+        for label, shape in given.items():
             event = {"event": "side_fit", "name": name, "from": label, "shape": shape, "start": start}
             try:
                 side = self.fit(name, start, shape=shape)
