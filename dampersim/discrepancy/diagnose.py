@@ -276,8 +276,6 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         held_pts = [pts[i] for i in held]
         # the discretisation check at the calibrated set, standardised
         bias_w = lik.vec(np.nan_to_num(terms_cal.coarse[train] - terms_cal.y[train]), train)
-        # the input channel's and the uncalibrated directions' changes, for the intervals' systematic term
-        changes_w = [lik.vec(np.nan_to_num(c[train]), train) for c in terms_cal.odd_changes()]
         models = {"none": {"cost": cost(y_tr, x), "x": x, "y": y_tr, "system": cal, "yh": y_cal_h, "effects": [],
                            "columns": [], "nuisance": lik.profile(y_tr, train)[1], "start": "calibrated"}}
         models["none"]["log_z"], models["none"]["cov"] = namer.evidence(models["none"], [], bias_w)
@@ -440,10 +438,8 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
         y_aug[train], y_aug[held] = final["y"], final["yh"]
         # intervals: the Laplace covariance's, widened where leaving out a training point moves a parameter further
         groups = intervals.point_groups(len(train), len(drive.ORDERS))
-        r_fin, jac_fin, prec_fin, offset_fin = namer.linearised(final)
-        jack, jack_noise = intervals.jackknife(r_fin, jac_fin, prec_fin, offset_fin, groups, eta)
-        sys_var = intervals.systematic_variance(jac_fin, prec_fin, changes_w, eta)
-        effects_out = intervals.effects_of(top, final, jack, sys_var)
+        jack, jack_noise = intervals.jackknife(*namer.linearised(final), groups, eta)
+        effects_out = intervals.effects_of(top, final, jack)
         effect = effects_out[0]["name"] if verdict == "missing_effect" else None
         eff_params = {}
         if effect:
@@ -505,7 +501,6 @@ def diagnose(campaign, system=None, workers: int | None = None, progress=None, c
                     "recalibrated": recalibrated, "pair_partners": partners,
                     "interval_spread": intervals.spread(final, jack),
                     "interval_spread_noise": intervals.spread(final, jack_noise),
-                    "interval_spread_systematic": intervals.spread(final, sys_var),
                     "ramp_effective_share": ramp_lik.fraction if ramp_lik is not None else None,
                     "chi2_ramps": chi_r.get(top) if ramp_lik is not None else None,
                     "ramp_log_likelihood": ramp_ll,

@@ -95,25 +95,6 @@ def jackknife(r, jac, prec, offset, groups, eta: float = 1.0) -> tuple:
     return variance, expected
 
 
-def systematic_variance(jac, prec, changes, eta: float = 1.0) -> np.ndarray:
-    """Each parameter's variance from systematic changes of the model that the data cannot
-    tell from the parameters: sum over the changes b_k of shift_k^2, shift_k = eta C J' b_k the
-    parameters' move under the fit's linearised objective (C the Laplace covariance) if the
-    residual carried b_k. Each b_k is the standardised change one standard uncertainty of a
-    source makes (:meth:`~dampersim.discrepancy.model_terms.ModelTerms.odd_changes`), the
-    sources independent; the same propagation as the discretisation check's bias
-    (:meth:`~dampersim.discrepancy.naming.Namer.evidence`). jac, prec, eta: as :func:`jackknife`'s.
-    The cell variances already carry these terms, as scatter: that widens every interval a
-    little, where a change that resembles a parameter's column moves that parameter coherently.
-    Inputs that are not all finite give NaN (no systematic term)."""
-    jac = np.asarray(jac, dtype=float)
-    b = np.asarray(changes, dtype=float).reshape(-1, jac.shape[0])
-    if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(b)) and np.all(np.isfinite(prec))) or not eta > 0:
-        return np.full(jac.shape[1], np.nan)
-    shifts = eta * (selection.posterior_covariance(jac, prec, eta) @ (jac.T @ b.T))  # parameters x changes
-    return np.sum(shifts ** 2, axis=1)
-
-
 def columns(fit) -> dict:
     """{effect: {parameter: its column in the evidence's order}} for the parameters of a
     fitted model that get an interval: each effect's magnitude (calibration factors first,
@@ -127,14 +108,12 @@ def columns(fit) -> dict:
     return out
 
 
-def effects_of(label, fit, jack_var=None, sys_var=None) -> list:
+def effects_of(label, fit, jack_var=None) -> list:
     """The ``effects`` entries of a fitted model: name, fitted parameters (magnitude and
     shape parameters) and their 90 % intervals in log space, from the larger of the Laplace
     variance (``fit["cov"]``) and ``jack_var`` (:func:`jackknife`'s variance, in the same
-    parameter order; None or NaN: the Laplace variance alone), plus ``sys_var``
-    (:func:`systematic_variance`, same order; None or NaN: none): a systematic change moves
-    every point alike, so neither the scatter nor the jackknife sees it. A magnitude the ramps
-    sized (``fit["sized_by_ramps"]``) keeps the ramps' variance: the torsional points did not set it."""
+    parameter order; None or NaN: the Laplace variance alone). A magnitude the ramps sized
+    (``fit["sized_by_ramps"]``) keeps the ramps' variance: the torsional points did not set it."""
     out = []
     names, cols_of = fit.get("effects", []), columns(fit)
     cov, own = fit.get("cov"), fit.get("sized_by_ramps", False)
@@ -144,8 +123,7 @@ def effects_of(label, fit, jack_var=None, sys_var=None) -> list:
             return math.nan
         v = max(float(cov[i, i]), 0.0)
         j = math.nan if jack_var is None or own else float(jack_var[i])
-        s = math.nan if sys_var is None or own else float(sys_var[i])
-        return math.sqrt((max(v, j) if math.isfinite(j) else v) + (max(s, 0.0) if math.isfinite(s) else 0.0))
+        return math.sqrt(max(v, j) if math.isfinite(j) else v)
 
     for j, name in enumerate(names):
         e, cols = info(name), cols_of[name]
@@ -189,4 +167,4 @@ def reported_shapes(name, fit, n_effects: int) -> dict:
     return {**fit.get("shape_start", {}), **fit.get("shapes", {}), **choices}
 
 
-__all__ = ["point_groups", "jackknife", "systematic_variance", "columns", "effects_of", "spread", "reported_shapes"]
+__all__ = ["point_groups", "jackknife", "columns", "effects_of", "spread", "reported_shapes"]

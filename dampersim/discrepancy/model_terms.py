@@ -68,14 +68,6 @@ class ModelTerms:
         calibration cannot follow [N m]."""
         return np.sqrt(0.5 * np.sum(np.abs(self.uncalibrated - self.y) ** 2, axis=0))
 
-    def odd_changes(self) -> list:
-        """The first-order systematic changes [N m] (complex, points x orders): the input channel's
-        (y_up - y_down) / 2, then each uncalibrated direction's (y_+ - y_-) / 2, each the change one
-        standard uncertainty of its parameter makes (the discretisation check, y_coarse - y, is
-        read separately as the evidence's bias). Their second-order (even) parts are left out."""
-        unc = self.uncalibrated
-        return [0.5 * (self.input_up - self.input_down)] + [0.5 * (unc[k] - unc[k + 1]) for k in range(0, len(unc), 2)]
-
     def failed_rows(self) -> set:
         """Rows at which any of the runs failed: a recorded error, or a non-finite cell of the
         set's own coefficients or of any check (also after :meth:`at`, which drops the errors)."""

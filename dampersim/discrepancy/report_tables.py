@@ -158,14 +158,13 @@ def _interval(v):
     return None, None
 
 
-def _width_text(spread, noise, name: str, par: str, magnitude, systematic=None) -> str:
-    """What set an interval's width, from ``likelihood.interval_spread``,
-    ``interval_spread_noise`` and ``interval_spread_systematic`` (None: a diagnosis from before
-    them): the Laplace covariance, the points' jackknife (its standard deviation over the
-    Laplace one, and the root of its expected variance with the noise alone over the Laplace
-    one: a ratio well above that figure says the points disagree, a figure well above 1 that
-    few points inform the parameter) or, for a magnitude the ramps sized, the ramps; then the
-    systematic changes' standard deviation over the Laplace one, added in quadrature."""
+def _width_text(spread, noise, name: str, par: str, magnitude) -> str:
+    """What set an interval's width, from ``likelihood.interval_spread`` and
+    ``interval_spread_noise`` (None: a diagnosis from before them): the Laplace covariance,
+    the points' jackknife (its standard deviation over the Laplace one, and the root of its
+    expected variance with the noise alone over the Laplace one: a ratio well above that
+    figure says the points disagree, a figure well above 1 that few points inform the
+    parameter) or, for a magnitude the ramps sized, the ramps."""
     entry = spread.get(name) if spread is not None else None
     if not isinstance(entry, dict):
         return DASH
@@ -174,13 +173,11 @@ def _width_text(spread, noise, name: str, par: str, magnitude, systematic=None) 
     ratio = _float(entry[par])
     if ratio is None:
         return DASH
-    extra = _float(_dict(_dict(systematic).get(name)).get(par))
-    plus = "" if extra is None else f", plus systematic changes {number_text(extra, 3)}× the Laplace width"
     if ratio <= 1.0:
-        return "the Laplace covariance" + plus
+        return "the Laplace covariance"
     alone = _float(_dict(_dict(noise).get(name)).get(par))
     return (f"the points' jackknife, {number_text(ratio, 3)}× the Laplace width" +
-            ("" if alone is None else f" ({number_text(alone, 3)}× with the noise alone)") + plus)
+            ("" if alone is None else f" ({number_text(alone, 3)}× with the noise alone)"))
 
 
 def effect_rows(doc) -> list:
@@ -188,14 +185,14 @@ def effect_rows(doc) -> list:
     "parameter", "unit", "value", "low", "high", "magnitude" (the parameter that sets the
     effect's size), "value_text", "interval_text" ("880 – 990 N m", the 90 % interval),
     "width_text" (what set the interval's width: the Laplace covariance, the points' jackknife
-    or the ramps, and the systematic changes' share; dampersim.discrepancy.intervals)}. Empty for the model without effects and without a
+    or the ramps; dampersim.discrepancy.intervals)}. Empty for the model without effects and without a
     model comparison."""
     rows = []
     if not isinstance(doc, dict):
         return rows
     lk = _dict(doc.get("likelihood"))
     spread = lk.get("interval_spread") if isinstance(lk.get("interval_spread"), dict) else None
-    noise, systematic = lk.get("interval_spread_noise"), lk.get("interval_spread_systematic")
+    noise = lk.get("interval_spread_noise")
     for e in _list(doc.get("effects")):
         if not isinstance(e, dict):
             continue
@@ -215,8 +212,7 @@ def effect_rows(doc) -> list:
                 "magnitude": par == magnitude, "value_text": value_text,
                 "interval_text": DASH if low is None or high is None else
                 f"{number_text(low, 3)} – {number_text(high, 3, unit)}",
-                "width_text": (DASH if low is None or high is None
-                               else _width_text(spread, noise, name, par, magnitude, systematic)),
+                "width_text": DASH if low is None or high is None else _width_text(spread, noise, name, par, magnitude),
             })
     return rows
 

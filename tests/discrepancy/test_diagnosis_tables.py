@@ -92,13 +92,6 @@ def test_effects_of_the_most_probable_model_with_intervals_and_units():
     lk["interval_spread"]["clutch_slip"] = {"capacity": 0.8, "viscous": 1.0}
     assert [r["width_text"] for r in T.effect_rows(plain({**FULL, "likelihood": lk}))] == [
         "the Laplace covariance", "the Laplace covariance"]
-    # the systematic changes' share, added in quadrature, named beside whichever set the width
-    sys_lk = {**lk, "interval_spread": {"clutch_slip": {"capacity": 0.8, "viscous": 2.5}},
-              "interval_spread_systematic": {"clutch_slip": {"capacity": 1.7, "viscous": 0.25}}}
-    assert [r["width_text"] for r in T.effect_rows(plain({**FULL, "likelihood": sys_lk}))] == [
-        "the Laplace covariance, plus systematic changes 1.7× the Laplace width",
-        "the points' jackknife, 2.5× the Laplace width (2.4× with the noise alone), plus systematic changes "
-        "0.25× the Laplace width"]
     # no jackknife (a null ratio), a malformed entry: a dash, never "the ramps"
     lk["interval_spread"]["clutch_slip"] = {"capacity": None, "viscous": 3.0}
     del lk["interval_spread_noise"]

@@ -133,10 +133,6 @@ def test_a_hidden_absorber_is_named_with_its_magnitude(absorber):
     for key in ("interval_spread", "interval_spread_noise"):
         spread = lk[key]["pendulum_absorber"]
         assert set(spread) == {"inertia", "order", "damping"} and all(v > 0 for v in spread.values()), (key, spread)
-    # and the systematic changes' share, added to that width (intervals.systematic_variance)
-    spread = lk["interval_spread_systematic"]["pendulum_absorber"]
-    assert set(spread) == {"inertia", "order", "damping"} and all(v >= 0 for v in spread.values()), spread
-    assert any(v > 0 for v in spread.values()), spread
     # the held-out misfit falls by at least 70 % against the calibrated model's
     assert lk["reduced_chi2_held_out"] <= 0.3 * lk["reduced_chi2_held_out_calibrated"]
     # the verdict: with the absorber fitted, this campaign's points at 900 rpm keep a misfit

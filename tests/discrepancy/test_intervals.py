@@ -196,64 +196,6 @@ def test_each_interval_takes_the_larger_variance_and_a_ramp_sized_magnitude_keep
     assert intervals.spread(_fit(lap), None) == {}
 
 
-def test_the_systematic_variance_is_the_summed_square_of_each_changes_least_squares_shift():
-    """Each change b_k moves the parameters by the minimiser of eta |b_k - J d|^2 + d' P d; the
-    variance is the sum of those moves' squares (independent sources, one standard uncertainty
-    each). Checked against that minimisation solved on its own as an augmented least-squares
-    problem (rel 1e-9: two factorisations of the same well-conditioned system)."""
-    rng = np.random.default_rng(3)
-    jac, prec, eta = rng.standard_normal((48, 5)), np.array([1.0, 4.0, 0.5, 2.0, 1.0]), 0.6
-    changes = rng.standard_normal((3, 48))
-    aug = np.vstack([math.sqrt(eta) * jac, np.diag(np.sqrt(prec))])
-    moves = [np.linalg.lstsq(aug, np.r_[math.sqrt(eta) * b, np.zeros(5)], rcond=None)[0] for b in changes]
-    expected = np.sum(np.square(moves), axis=0)
-    assert intervals.systematic_variance(jac, prec, changes, eta) == pytest.approx(expected, rel=1e-9)
-    # one change at a time adds up: the sources are independent
-    one_by_one = sum(intervals.systematic_variance(jac, prec, [b], eta) for b in changes)
-    assert intervals.systematic_variance(jac, prec, changes, eta) == pytest.approx(one_by_one, rel=1e-12)
-
-
-def test_a_change_along_a_column_moves_that_parameter_and_one_across_them_moves_none():
-    """Under a weak prior (precision 1e-8 against J'J of order 100) a change equal to 0.3 times
-    parameter 2's column moves that parameter by 0.3 and the others by nothing (abs 1e-6: the
-    prior's pull, 1e-8 / 100 relative); a change orthogonal to every column moves none. No
-    change, or a change that is not finite (a failed run), gives zero and NaN."""
-    rng = np.random.default_rng(4)
-    jac, prec = rng.standard_normal((100, 4)), np.full(4, 1e-8)
-    along = 0.3 * jac[:, 2]  # a change the fit reads as parameter 2 alone
-    var = intervals.systematic_variance(jac, prec, [along])
-    assert var == pytest.approx([0.0, 0.0, 0.09, 0.0], abs=1e-6)
-    q, _ = np.linalg.qr(np.column_stack([jac, rng.standard_normal(100)]))
-    across = q[:, -1]  # orthogonal to the four columns
-    assert intervals.systematic_variance(jac, prec, [across]) == pytest.approx(np.zeros(4), abs=1e-20)
-    assert np.all(intervals.systematic_variance(jac, prec, np.zeros((0, 100))) == 0.0)
-    bad = along.copy()
-    bad[7] = np.nan
-    assert np.all(np.isnan(intervals.systematic_variance(jac, prec, [bad])))
-
-
-def test_the_systematic_variance_adds_to_the_larger_of_laplace_and_jackknife():
-    """Reported variance: max(Laplace, jackknife) + systematic; a ramp-sized magnitude keeps the
-    ramps' own variance, its shapes take the term; NaN adds nothing. interval_spread_systematic is
-    the systematic standard deviation over the Laplace one."""
-    n_cal = len(CALIBRATION)
-    lap = np.r_[np.full(n_cal, 0.01), 0.0004, 0.0001, 0.04, 0.01, 0.01]  # factors, inertia, order, damping, channels
-    jack = np.r_[np.full(n_cal, 0.02), 0.0016, 0.00001, 0.09, 0.0, 0.0]
-    sys_var = np.r_[np.full(n_cal, 0.5), 0.0009, 0.0008, 0.0, 1.0, 1.0]
-    (entry,) = intervals.effects_of("pendulum_absorber", _fit(lap), jack, sys_var)
-    assert _log_half_width(entry, "inertia") == pytest.approx(0.05)  # sqrt(0.0016 + 0.0009)
-    assert _log_half_width(entry, "order") == pytest.approx(0.03)  # sqrt(0.0001 + 0.0008)
-    assert _log_half_width(entry, "damping") == pytest.approx(0.3)  # the jackknife's 0.09, no systematic
-    (ramps,) = intervals.effects_of("pendulum_absorber", _fit(lap, sized_by_ramps=True), jack, sys_var)
-    assert _log_half_width(ramps, "inertia") == pytest.approx(0.02) and _log_half_width(ramps, "order") == (
-        pytest.approx(0.03))
-    nan = np.full(len(lap), np.nan)
-    assert intervals.effects_of("pendulum_absorber", _fit(lap), jack, nan) == intervals.effects_of(
-        "pendulum_absorber", _fit(lap), jack)
-    assert intervals.spread(_fit(lap), sys_var) == {
-        "pendulum_absorber": pytest.approx({"inertia": 1.5, "order": math.sqrt(8.0), "damping": 0.0})}
-
-
 def test_a_pairs_magnitudes_read_their_own_columns():
     """A pair carries its two magnitudes after the calibration factors and no shape columns:
     each magnitude's interval reads its own variance, the larger of the two sources."""

@@ -42,19 +42,6 @@ def test_the_uncalibrated_term_sums_the_directions_mean_squares():
     assert t.model_change == pytest.approx(np.full((1, ORDERS), 0.1), rel=1e-12)
 
 
-def test_the_odd_changes_are_the_input_then_each_direction_half_differences():
-    """The intervals' systematic sources (intervals.systematic_variance): the input channel's
-    (up - down) / 2, then each uncalibrated direction's (+ - -) / 2 in the measured order; a move
-    that bends the response alike both ways (an extremum) has none. Exact arithmetic: rel 1e-12."""
-    y = np.full((2, ORDERS), 5.0 + 1.0j)
-    unc = np.stack([y + 0.3, y - 0.3, y + 0.4j, y + 0.4j, y + 0.2, y])  # directions 1, 2, 3: up, down
-    odd = _terms(y, y + 0.6j, y - 0.2j, unc).odd_changes()
-    expected = [np.full_like(y, 0.4j), np.full_like(y, 0.3), np.zeros_like(y), np.full_like(y, 0.1)]
-    assert len(odd) == 4
-    for got, want in zip(odd, expected):
-        assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
-
-
 def test_failed_rows_are_filled_from_the_other_measurement_and_at_picks_rows():
     # first's rows differ: its input term is 0.5, 1.0 and 1.5 N m in rows 0, 1 and 2
     step = np.array([[0.5], [1.0], [1.5]]) * np.ones((3, ORDERS))
