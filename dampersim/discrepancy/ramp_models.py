@@ -78,36 +78,13 @@ def log_range(name: str, u0: float, span: float) -> tuple:
             math.log(naming.clip_magnitude(name, math.exp(u0 + span))))
 
 
-def factors_given_magnitude(cov, n_cal: int) -> tuple:
-    """(K, conditional covariance): what the torsional fit's Laplace covariance ``cov`` (log
-    calibration factors first, then the log magnitude) says of the factors once the magnitude
-    is fixed. The factors' mean moves by K (u - u0) when the log magnitude moves from the fit's
-    u0 to u, K = cov_xu / var_u, and their covariance shrinks to cov_x - cov_xu cov_ux / var_u
-    (a Gaussian's conditional). A magnitude with no variance leaves the factors as they are."""
-    cov = np.asarray(cov, dtype=float)
-    cov_x, cov_xu, var_u = cov[:n_cal, :n_cal], cov[:n_cal, n_cal], float(cov[n_cal, n_cal])
-    if not var_u > 0:
-        return np.zeros(n_cal), cov_x
-    gain = cov_xu / var_u
-    return gain, cov_x - np.outer(cov_xu, cov_xu) / var_u
-
-
 def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     """Size the single effect of ``fit`` by the ramps: a bounded search in log magnitude
     (RAMP_SEARCH around the torsional fit) of the ramps' predictive log likelihood plus the
     torsional fit's information on the magnitude (its Laplace variance), then the torsional
     points re-run at the new magnitude. An effect that shows mainly in ramps (free play) is
     sized by them; its interval comes from the curvature of that objective. True when the
-    model moved.
-
-    At each trial magnitude the calibration factors sit where the torsional fit would put them
-    at that magnitude (linearised: :func:`factors_given_magnitude`, within the factors' range),
-    and the ramps' prediction carries the factors' conditional covariance; the moved model
-    keeps those factors. Before, the factors stayed at the torsional fit's whatever the
-    magnitude, with their marginal covariance: a magnitude that trades against a stiffness on
-    the torsional points (a free play against the inner springs' rate) was sized at a stiffness
-    fitted for another magnitude (docs/discrepancy.md, Benchmark, "The free play's size on its
-    ramp")."""
+    model moved."""
     from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
 
     if len(fit["effects"]) != 1:
@@ -118,20 +95,12 @@ def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     u0 = math.log(fit["m"])
     lo, hi = log_range(name, u0, RAMP_SEARCH)
     var0 = max(float(fit["cov"][n_cal, n_cal]), 1e-12)
-    gain, cov_x = factors_given_magnitude(fit["cov"], n_cal)
-    x0 = np.asarray(fit["x"], dtype=float)
+    cov_x = fit["cov"][:n_cal, :n_cal]
     seen = {}
-
-    def moved_factors(u):
-        """The change of the log factors at log magnitude u, kept inside the factors' range."""
-        return np.clip(x0 + gain * (u - u0), -fitting.CAL_BOUND, fitting.CAL_BOUND) - x0
-
-    def system_at(u):
-        return with_effect(calibrated_system(fit["system"], moved_factors(u)), name, {e.magnitude: math.exp(u)})
 
     def objective(u):
         if u not in seen:
-            w = ramps_lik.run_ramps(runner, system_at(u), points)
+            w = ramps_lik.run_ramps(runner, with_effect(fit["system"], name, {e.magnitude: math.exp(u)}), points)
             ll = ramp_lik.predictive(w, np.column_stack(ramp_lik.cols_x), cov_x)[0]
             seen[u] = -ll + 0.5 * (u - u0) ** 2 / var0
         return seen[u]
@@ -145,12 +114,11 @@ def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     d = 0.05
     uc = min(max(u, lo + d), hi - d)  # the curvature is read inside the range
     curv = (objective(uc + d) - 2.0 * objective(uc) + objective(uc - d)) / d ** 2 if hi - lo > 2 * d else 0.0
-    moved = system_at(u)
+    moved = with_effect(fit["system"], name, {e.magnitude: math.exp(u)})
     y = drive.coefficients_of(runner, moved, pts)
     if not np.all(np.isfinite(y)):
         return False  # not adopted: the moved model fails somewhere
     fit["system"], fit["y"], fit["yh"], fit["m"] = moved, y[train], y[held], math.exp(u)
-    fit["x"] = x0 + moved_factors(u)
     fit["nuisance"] = lik.profile(fit["y"], train)[1]
     fit["cov"] = fit["cov"].copy()
     fit["cov"][n_cal, n_cal] = 1.0 / curv if curv > 0 else var0
@@ -158,5 +126,4 @@ def size_by_ramps(runner, fit, pts, train, held, lik, ramp_lik, points):
     return True
 
 
-__all__ = ["RAMP_SEARCH", "RAMP_UPDATE_MIN", "evidence", "factors_given_magnitude", "log_range", "magnitude",
-           "size_by_ramps"]
+__all__ = ["RAMP_SEARCH", "RAMP_UPDATE_MIN", "evidence", "log_range", "magnitude", "size_by_ramps"]

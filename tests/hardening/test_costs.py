@@ -345,7 +345,7 @@ def test_ramp_sizing_replays_at_most_the_counted_runs(monkeypatch, best):
             return 0.0, np.zeros(2)
 
     n = len(dg.CALIBRATION)
-    fit = {"effects": ["output_backlash"], "m": 0.03, "cov": np.eye(n + 1), "x": np.zeros(n),
+    fit = {"effects": ["output_backlash"], "m": 0.03, "cov": np.eye(n + 1),
            "system": with_effect(default_parameters(), "output_backlash", {"free_play": 0.03})}
     moved = ramp_models.size_by_ramps(None, fit, [0, 1, 2], [0, 1], [2], Lik(), Ramps(), ["r"])
     assert moved
