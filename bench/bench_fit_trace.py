@@ -71,7 +71,7 @@ import sys
 import numpy as np
 
 from dampersim.discrepancy import naming
-from dampersim.discrepancy.effects import clip_to_range, info, parameters_of, with_effect
+from dampersim.discrepancy.effects import info, with_effect
 from dampersim.discrepancy.selection import interval90
 from dampersim.errors import InputError, ParameterError
 from dampersim.parameters import default_parameters
@@ -117,21 +117,12 @@ def install(write, refit_shapes: dict, side_fits: dict | None = None, fresh_colu
 
     def columns_at(self, name, fit) -> tuple:
         """(columns, zeroed): the magnitude's and the stepped shapes' standardised columns at the
-        fit's final point, formed as Namer.fit and Namer.fit_shapes form them (a column whose run
-        fails, or whose shape sits at its bound, is zero there as in the library), and the
-        parameters whose column is zero."""
-        moved, step = naming.fd_magnitude(name, fit["m"])
-        y, failed = self.runs(with_effect(fit["system"], name, {info(name).magnitude: moved}), name)
-        zero = np.zeros_like(fit["column"])
-        cols, zeroed = [zero if failed else self.w((y - fit["y"]) / step)], [info(name).magnitude] if failed else []
-        meta = {p["name"]: p for p in parameters_of(name)}
-        held = self.shape_values(name, fit["system"])
-        for q in fit["shape_start"]:
-            v = float(held[q])
-            up = clip_to_range(v * math.exp(naming.SHAPE_FD_STEP), meta[q])
-            yq, bad = self.runs(with_effect(fit["system"], name, {q: up}), name)
-            cols.append(zero if bad or up == v else self.w((yq - fit["y"]) / math.log(up / v)))
-            zeroed += [q] if bad or up == v else []
+        fit's final point, formed by the library's Namer.magnitude_column and Namer.shape_columns
+        (a column whose run fails, or whose shape sits at its bound, is zero), and the parameters
+        whose column is zero."""
+        held, zeroed = self.shape_values(name, fit["system"]), []
+        cols = [self.magnitude_column(name, fit, zeroed=zeroed),
+                *self.shape_columns(name, fit, {q: float(held[q]) for q in fit["shape_start"]}, zeroed)]
         return cols, zeroed
 
     def read_fresh(self, name, fit, out, bias, eta) -> dict:

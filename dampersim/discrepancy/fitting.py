@@ -58,6 +58,8 @@ CAL_STEP_FRACTIONS = (1.0, 0.5, 0.25)  # calibration step lengths tried, longest
 CAL_DERIVATIVE_STEPS = (0.05, 0.01)
 CAL_SCAN = (-0.3, -0.15, 0.15, 0.3)  # log factors of the coarse scan before Gauss-Newton (x0.74 .. x1.35)
 REFINE_EVALUATIONS = 8  # magnitude refinement after the grid: campaign runs per candidate
+#: log step of the finite differences for an effect's magnitude
+FD_STEP = 0.1
 #: values the magnitude grid is continued by, at its own ratio, beyond an end that holds its
 #: lowest objective (grid_bracket): the refinement searches between a grid value's neighbours
 #: only, and for an effect that grows with its magnitude the grid's floor (weak / 1.8) lies
@@ -79,6 +81,16 @@ def calibrated_system(system, x: np.ndarray):
             if n in flat:
                 upd[n] = float(flat[n]) * math.exp(float(xi))
     return with_updates(system, upd, check=False)
+
+
+def fd_magnitude(name: str, m: float) -> tuple:
+    """(moved magnitude, log step) for a finite difference of effect ``name``'s magnitude at
+    ``m``: FD_STEP forwards, backwards where forwards would leave the accepted range."""
+    up = clip_magnitude(name, m * math.exp(FD_STEP))
+    if up > m * math.exp(0.5 * FD_STEP):
+        return up, math.log(up / m)
+    down = clip_magnitude(name, m * math.exp(-FD_STEP))
+    return down, math.log(down / m)
 
 
 def direction_step(direction: dict, log_sd: float = ESTIMATE_LOG_SD) -> float:
@@ -200,5 +212,5 @@ def first_lower(trial, cost_now: float, fractions=CAL_STEP_FRACTIONS):
 
 __all__ = ["CALIBRATION", "UNCALIBRATED", "ESTIMATE_LOG_SD", "CAL_BOUND", "PRIOR_LOG_SD", "CAL_STEP_FRACTIONS",
            "CAL_SCAN", "CAL_DERIVATIVE_STEPS", "REFINE_EVALUATIONS", "GRID_EXTENSION", "COARSE_SEGMENTS",
-           "calibrated_system", "grid_bracket",
+           "FD_STEP", "calibrated_system", "fd_magnitude", "grid_bracket",
            "direction_step", "uncalibrated_systems", "coarse_system", "prior_step", "first_lower"]

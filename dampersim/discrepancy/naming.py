@@ -17,14 +17,12 @@ import numpy as np
 
 from dampersim.discrepancy import detect, drive, selection, shapes, unnamed
 from dampersim.discrepancy.effects import clip_magnitude, clip_to_range as _clip, info, parameters_of, with_effect
-from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
-    _lstsq_bounded, calibrated_system, first_lower, grid_bracket, prior_step
+from dampersim.discrepancy.fitting import CAL_BOUND, CAL_DERIVATIVE_STEPS, FD_STEP, PRIOR_LOG_SD, REFINE_EVALUATIONS, \
+    _lstsq_bounded, calibrated_system, fd_magnitude, first_lower, grid_bracket, prior_step
 from dampersim.discrepancy.likelihood import DELAY_PRIOR_SD, GAIN_PRIOR_SD
 from dampersim.discrepancy.shapes import SHAPES
 from dampersim.errors import ParameterError
 
-#: log step of the finite differences for an effect's magnitude
-FD_STEP = 0.1
 #: log step of the finite differences for shape parameters: small, since a tuned absorber's
 #: response is sharply non-linear in its tuning order (2 % is 0.04 orders at order 2)
 SHAPE_FD_STEP = 0.02
@@ -243,13 +241,13 @@ class Namer:
         lowest objective (:func:`~dampersim.discrepancy.fitting.grid_bracket`), a bounded search in
         log magnitude, a linearised re-calibration at every trial, then real runs against the
         re-calibrated, the start's and the estimated factors (on top of another effect the start's
-        alone: the search's own run at the best magnitude). Returns a dict (cost, m, x, y, system, column: the
-        standardised derivative w.r.t. log m) or None when every run failed. extra_prior: prior
-        terms of parameters fitted before (the pair's other effect); label: the model failed runs
-        are recorded against (default ``name``); jac: the factors' Jacobian of the linearised
+        alone: the search's own run at the best magnitude). Returns a dict (cost, m, x, y, system,
+        column: :meth:`magnitude_column`) or None when every run failed. extra_prior: prior terms
+        of parameters fitted before (the pair's other effect); label: the model failed runs are
+        recorded against (default ``name``); jac: the factors' Jacobian of the linearised
         re-calibration (default the calibration's; a pair on top of a re-calibrated effect passes
-        that effect's, :meth:`jac_of`); shape: the effect's shape values held through the fit
-        (default the parameter set's), their prior term counted in the objective."""
+        that effect's, :meth:`jac_of`); shape: the effect's shape values held through the fit (default
+        the parameter set's), their prior term counted in the objective."""
         from scipy.optimize import minimize_scalar  # scipy loads only when a diagnosis runs
 
         e = info(name)
@@ -290,10 +288,17 @@ class Namer:
                         "system": with_effect(sysx, name, {**shape, e.magnitude: m}), "shapes": {}}
         if not math.isfinite(best["cost"]):
             return None
-        moved, step = fd_magnitude(name, m)
-        yd, failed = self.runs(with_effect(best["system"], name, {e.magnitude: moved}), label)
-        best["column"] = np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - best["y"]) / step)
+        best["column"] = self.magnitude_column(name, best, label)
         return best
+
+    def magnitude_column(self, name, fit, label=None, zeroed=None) -> np.ndarray:
+        """Standardised column of effect ``name``'s log magnitude at ``fit`` (:func:`fd_magnitude`);
+        zero where its run (recorded against ``label``, default ``name``) fails, named in ``zeroed``."""
+        moved, step = fd_magnitude(name, fit["m"])
+        yd, failed = self.runs(with_effect(fit["system"], name, {info(name).magnitude: moved}), label or name)
+        if failed and zeroed is not None:
+            zeroed.append(info(name).magnitude)
+        return np.zeros_like(self.lik.mvec(self.train)) if failed else self.w((yd - fit["y"]) / step)
 
     def _trial(self, name, s0, x0, values, label, jac, extra) -> tuple:
         """(objective, factors, the run's coefficients) of effect ``name`` at ``values`` on top of
@@ -436,18 +441,14 @@ class Namer:
                 "shapes": {}, "column": jac[:, n], "jac": jac[:, :n], "log_mass": fit.get("log_mass", 0.0)}
 
     def fit_shapes(self, name, fit):
-        """One Gauss-Newton step on the effect's shape parameters (log scale, prior
-        SHAPE_PRIOR_SD around the parameter set's values, whichever shape the fit started from;
-        discrete shapes stay as chosen) jointly with its magnitude and the calibration,
-        accepted when a real run lowers the objective. The step weights the points by the robust weights of the
-        fit's own model (:meth:`_at_own_weights`), as :meth:`refit`'s steps do. The columns are
-        those the evidence reads: standardised at the stored weights and nuisance (after
-        :meth:`refit`, its factors' and magnitude's at its last iteration's nuisance; the
-        calibration's Jacobian at the weights before the calibration's recheck step,
-        docs/discrepancy.md, Known limits), while the residual and the weights take the fit's
-        own nuisance, a difference of first order in the nuisance's change that the real run
-        accepting or refusing the step covers. Adds the shape columns to ``fit`` (for the
-        evidence and the intervals) and returns it."""
+        """One Gauss-Newton step on the effect's shape parameters (log scale, prior SHAPE_PRIOR_SD
+        around the parameter set's values, whichever shape the fit started from; discrete shapes
+        stay as chosen) jointly with its magnitude and the calibration, kept when a real run
+        lowers the objective. The step weights the points by the fit's own model's robust weights
+        (:meth:`_at_own_weights`), as :meth:`refit`'s do; the columns are the evidence's,
+        standardised at the stored weights and nuisance (after :meth:`refit`, its last iteration's;
+        docs/discrepancy.md, Known limits), a first-order difference the real run's verdict covers.
+        Adds the shape columns (:meth:`shape_columns`) to ``fit`` for the evidence; returns it."""
         fitted = SHAPES.get(name, ())
         if not fitted or fit is None or fit.get("base") is not None:  # not on top of another effect
             return fit
@@ -455,11 +456,7 @@ class Namer:
         held = self.shape_values(name, fit["system"])
         own = self.library_effect(name)
         start = {q: float(held[q]) for q in fitted if float(held[q]) > 0}
-        cols = []
-        for q, v in start.items():
-            up = _clip(v * math.exp(SHAPE_FD_STEP), meta[q])
-            yq, failed = self.runs(with_effect(fit["system"], name, {q: up}), name)
-            cols.append(np.zeros_like(fit["column"]) if failed or up == v else self.w((yq - fit["y"]) / math.log(up / v)))
+        cols = self.shape_columns(name, fit, start)
         fit["shape_start"], fit["shape_columns"] = dict(start), cols
         if not cols:
             return fit
@@ -482,6 +479,20 @@ class Namer:
         if c < fit["cost"]:
             fit.update({"cost": c, "m": m, "x": x, "y": yn, "system": sysn, "shapes": new})
         return fit
+
+    def shape_columns(self, name, fit, values, zeroed=None) -> list:
+        """Standardised columns of effect ``name``'s shapes ``values`` ({parameter: value}) at ``fit``, log forward
+        differences of SHAPE_FD_STEP in range; zero (named in ``zeroed``) where a run fails or a shape is at a bound."""
+        meta = {p["name"]: p for p in parameters_of(name)}
+        cols = []
+        for q, v in values.items():
+            up = _clip(v * math.exp(SHAPE_FD_STEP), meta[q])
+            yq, failed = self.runs(with_effect(fit["system"], name, {q: up}), name)
+            bad = failed or up == v
+            cols.append(np.zeros_like(fit["column"]) if bad else self.w((yq - fit["y"]) / math.log(up / v)))
+            if bad and zeroed is not None:
+                zeroed.append(q)
+        return cols
 
     def _at_own_weights(self, y) -> tuple:
         """(nuisance, residual, row factors) for a Gauss-Newton step of the robust loss
@@ -579,21 +590,11 @@ class Namer:
         return detect.threshold(self, name, y_cal, nuisance, y_typ, priors, ramp_gain, eta, jac)
 
 
-def fd_magnitude(name: str, m: float) -> tuple:
-    """(moved magnitude, log step) for a finite difference of effect ``name``'s magnitude at
-    ``m``: FD_STEP forwards, backwards where forwards would leave the accepted range."""
-    up = clip_magnitude(name, m * math.exp(FD_STEP))
-    if up > m * math.exp(0.5 * FD_STEP):
-        return up, math.log(up / m)
-    down = clip_magnitude(name, m * math.exp(-FD_STEP))
-    return down, math.log(down / m)
-
-
 def _with_factors(starts, base, x):
     """The estimated parameter set (the estimated start's) with calibration factors exp(x),
     or ``base`` unchanged when fitting on top of another effect."""
     return base if base is not None else calibrated_system(starts["estimated"][0], x)
 
 
-__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "SECOND_START_NATS", "REFIT_ITERATIONS", "FD_STEP", "Namer",
-           "clip_magnitude", "fd_magnitude"]
+__all__ = ["SHAPES", "MIN_SCREEN_SCALE", "SECOND_START_NATS", "REFIT_ITERATIONS", "Namer",
+           "clip_magnitude"]

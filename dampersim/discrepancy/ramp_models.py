@@ -57,7 +57,7 @@ def evidence(runner, system, x, models, points):
         runs[label] = ramps_lik.run_ramps(runner, fit["system"], points)
         cols = list(cols_x)
         for name in fit["effects"]:
-            m_fd, step = naming.fd_magnitude(name, magnitude(fit["system"], name))
+            m_fd, step = fitting.fd_magnitude(name, magnitude(fit["system"], name))
             moved = with_effect(fit["system"], name, {info(name).magnitude: m_fd})
             cols.append(lik_r.column(ramps_lik.run_ramps(runner, moved, points), runs[label], step))
         cols += [np.zeros(lik_r.residuals)] * (fit["cov"].shape[0] - len(cols))  # shapes, channels: not on the ramps

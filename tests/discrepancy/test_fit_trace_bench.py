@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from dampersim.discrepancy import naming, selection
+from dampersim.discrepancy import fitting, naming, selection
 
 from tests.discrepancy.benches import load_bench
 from tests.discrepancy.test_refit import NAME, _first_fit, namer  # noqa: F401  (namer: the fixture)
@@ -149,7 +149,7 @@ def test_fresh_columns_read_the_evidence_with_derivatives_at_the_fits_final_poin
     assert len(namer.calls) == runs + per_run * (1 + len(fit["shape_start"]))  # read again without runs
     fresh = events[0]["fresh_columns"]
     # independently: each column by its finite difference at the final point
-    moved, step = naming.fd_magnitude(NAME, fit["m"])
+    moved, step = fitting.fd_magnitude(NAME, fit["m"])
     y_m, _ = namer.runs(naming.with_effect(fit["system"], NAME, {"inertia": moved}), NAME)
     cols = [namer.w((y_m - fit["y"]) / step)]
     eff = fit["system"].effects.pendulum_absorber
